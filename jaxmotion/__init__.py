@@ -1,0 +1,3 @@
+"""jaxmotion: stochastic 3D human motion prediction in JAX."""
+
+__version__ = "0.1.0"
