@@ -1,0 +1,85 @@
+"""Windows of `t_his` observed + `t_pred` future frames (PROTOCOL sec. 1 and 3)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from jaxmotion.data.types import Sequence
+
+
+def to_frames(positions: np.ndarray, root: int = 0) -> np.ndarray:
+    """Returns `(T, (J-1)*3)` root-relative frame vectors with the root joint dropped.
+
+    `positions` is `(T, J, 3)`; every joint is expressed relative to `root` in the same frame.
+    """
+    positions = np.asarray(positions)
+    if positions.ndim != 3 or positions.shape[-1] != 3:
+        raise ValueError(f"to_frames: positions must be (T, J, 3), got shape {positions.shape}")
+    if not np.all(np.isfinite(positions)):
+        raise ValueError("to_frames: positions contain NaN or inf")
+    rel = positions - positions[:, root : root + 1]
+    rel = np.delete(rel, root, axis=1)
+    return rel.reshape(rel.shape[0], -1).astype(np.float32)
+
+
+def test_starts(num_frames: int, t_total: int, step: int) -> np.ndarray:
+    """Returns the start frames of test windows in one sequence.
+
+    DLow's `iter_generator(step)` uses `range(0, T - t_total, step)`: the last possible start
+    (`T - t_total`) is excluded. We keep that exactly so window counts match published code.
+    """
+    return np.arange(0, max(num_frames - t_total, 0), step, dtype=np.int64)
+
+
+def test_windows(frames: list[np.ndarray], t_his: int, t_pred: int, step: int | None = None):
+    """Returns `(windows (N, t_his+t_pred, D), seq_index (N,), start (N,))`.
+
+    Windows start every `step` frames (default `t_his`, PROTOCOL sec. 3) of each sequence in
+    `frames` (a list of `(T, D)` arrays).
+    """
+    step = t_his if step is None else step
+    t_total = t_his + t_pred
+    out, seq_idx, starts = [], [], []
+    for i, f in enumerate(frames):
+        s = test_starts(f.shape[0], t_total, step)
+        if len(s):
+            idx = s[:, None] + np.arange(t_total)[None, :]
+            out.append(f[idx])
+            seq_idx.append(np.full(len(s), i))
+            starts.append(s)
+    if not out:
+        raise ValueError(f"test_windows: no sequence is longer than t_his + t_pred = {t_total} frames")
+    return np.concatenate(out), np.concatenate(seq_idx), np.concatenate(starts)
+
+
+class TrainSampler:
+    """Draws training windows at random start frames (PROTOCOL sec. 3).
+
+    A sequence is chosen with probability proportional to its number of valid starts, so every
+    valid window is equally likely (DLow picks subject then action uniformly; we document this
+    deviation because it weights long sequences fairly). Uses a numpy Generator seeded explicitly.
+    """
+
+    def __init__(self, frames: list[np.ndarray], t_total: int):
+        self.frames = [f for f in frames if f.shape[0] >= t_total]
+        if not self.frames:
+            raise ValueError(f"TrainSampler: no sequence has at least t_total = {t_total} frames")
+        self.t_total = t_total
+        counts = np.array([f.shape[0] - t_total + 1 for f in self.frames], dtype=np.float64)
+        self.p = counts / counts.sum()
+        self.num_windows = int(counts.sum())
+
+    def sample(self, rng: np.random.Generator, batch_size: int) -> np.ndarray:
+        """Returns `(batch_size, t_total, D)` float32 windows."""
+        seqs = rng.choice(len(self.frames), size=batch_size, p=self.p)
+        out = np.empty((batch_size, self.t_total, self.frames[0].shape[1]), np.float32)
+        for b, s in enumerate(seqs):
+            f = self.frames[s]
+            start = rng.integers(0, f.shape[0] - self.t_total + 1)
+            out[b] = f[start : start + self.t_total]
+        return out
+
+
+def sequence_frames(seqs: list[Sequence], root: int = 0) -> list[np.ndarray]:
+    """Returns the frame vectors of each sequence (see `to_frames`)."""
+    return [to_frames(s.positions, root) for s in seqs]

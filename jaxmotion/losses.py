@@ -1,0 +1,46 @@
+"""Loss terms shared by the methods: KL divergences, reconstruction and diversity terms.
+
+Every function reduces over the axes it documents and nothing else, so a caller decides how to
+average over a batch.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+
+def kld_normal(mu: Float[Array, "... z"], logvar: Float[Array, "... z"]) -> Float[Array, "..."]:
+    """Returns KL(N(mu, exp(logvar)) || N(0, I)) summed over the last axis (Kingma & Welling, App. B)."""
+    return -0.5 * jnp.sum(1.0 + logvar - mu**2 - jnp.exp(logvar), axis=-1)
+
+
+def kld_affine(a: Float[Array, "... z"], b: Float[Array, "... z"]) -> Float[Array, "..."]:
+    """Returns KL(N(b, diag(a^2)) || N(0, I)) summed over the last axis (DLow's Q-network KL)."""
+    var = a**2
+    return -0.5 * jnp.sum(1.0 + jnp.log(var) - b**2 - var, axis=-1)
+
+
+def robust_kld(kld: Float[Array, "..."]) -> Float[Array, "..."]:
+    """Returns Psi(s) = sqrt(1 + s^2) - 1, MOJO's robust KLD (Eq. (1) of MOJO)."""
+    return jnp.sqrt(1.0 + kld**2) - 1.0
+
+
+def pairwise_sq_dists(y: Float[Array, "k n"]) -> Float[Array, "k k"]:
+    """Returns the `(k, k)` squared Euclidean distances between the rows of `y`."""
+    sq = jnp.sum(y**2, axis=-1)
+    d2 = sq[:, None] + sq[None, :] - 2.0 * y @ y.T
+    return jnp.maximum(d2, 0.0)
+
+
+def dlow_diversity(y: Float[Array, "k ..."], d_scale: float) -> Float[Array, ""]:
+    """Returns mean_{i<j} exp(-||y_i - y_j||^2 / d_scale) over the K samples (DLow Eq. (9))."""
+    k = y.shape[0]
+    d2 = pairwise_sq_dists(y.reshape(k, -1))
+    iu = jnp.triu_indices(k, 1)
+    return jnp.mean(jnp.exp(-d2[iu] / d_scale))
+
+
+def min_of_k_sq_error(y_k: Float[Array, "k t d"], y: Float[Array, "t d"]) -> Float[Array, ""]:
+    """Returns min_k sum_{t,d} (y_k - y)^2: DLow's reconstruction term for one window."""
+    return jnp.min(jnp.sum((y_k - y[None]) ** 2, axis=(-2, -1)))

@@ -1,0 +1,22 @@
+"""Multi-layer perceptron as used by DLow: a nonlinearity after every layer."""
+
+from __future__ import annotations
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+
+class MLP(nn.Module):
+    """Returns `act(Dense(...act(Dense(x))))`: DLow's MLP (tanh after every layer)."""
+
+    features: tuple[int, ...]
+    activation: str = "tanh"  # any jax.nn name, or "tanh"
+
+    @nn.compact
+    def __call__(self, x: Float[Array, "... i"]) -> Float[Array, "... o"]:
+        act = getattr(jax.nn, self.activation) if self.activation != "tanh" else jnp.tanh
+        for i, f in enumerate(self.features):
+            x = act(nn.Dense(f, name=f"dense_{i}")(x))
+        return x

@@ -1,0 +1,98 @@
+"""Pictures of observed motion and predicted futures (matplotlib, headless)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def frames_to_joints(frames: np.ndarray) -> np.ndarray:
+    """Returns `(..., J, 3)` joints from root-relative root-dropped frame vectors `(..., (J-1)*3)`."""
+    j = frames.reshape(frames.shape[:-1] + (-1, 3))
+    root = np.zeros(j.shape[:-2] + (1, 3), j.dtype)
+    return np.concatenate([root, j], axis=-2)
+
+
+def view_axes(joints: np.ndarray) -> tuple[int, int, int]:
+    """Returns `(up, across, depth)` axes: up is where a pose spans most (body height)."""
+    span = np.ptp(joints.reshape(-1, joints.shape[-2], 3), axis=-2).mean(axis=0)
+    up = int(np.argmax(span))
+    rest = [a for a in range(3) if a != up]
+    across = max(rest, key=lambda a: span[a])
+    depth = [a for a in rest if a != across][0]
+    return up, across, depth
+
+
+def _draw(ax, pose, parents, h, v, dx=0.0, **kw):
+    for j, p in enumerate(parents):
+        if p >= 0:
+            ax.plot([pose[p, h] + dx, pose[j, h] + dx], [pose[p, v], pose[j, v]], **kw)
+
+
+def plot_futures(
+    x: np.ndarray,
+    preds: np.ndarray,
+    gt: np.ndarray,
+    parents: tuple[int, ...],
+    path: str | Path,
+    *,
+    title: str = "",
+    n_rows: int = 4,
+    n_frames: int = 6,
+) -> Path:
+    """Writes and returns a PNG of one window: stacked end poses of all K futures, and a few futures over time.
+
+    `x` `(t_his, D)`, `preds` `(K, t_pred, D)`, `gt` `(t_pred, D)` frame vectors. Top row: the last
+    observed pose, then the K predicted end poses overlaid (front and side view) beside the true
+    end pose. Below: the ground truth and `n_rows` samples as strips of `n_frames` poses over time.
+    """
+    xj, pj, gj = frames_to_joints(x), frames_to_joints(preds), frames_to_joints(gt)
+    up, across, depth = view_axes(np.concatenate([xj, gj]))
+    k, t_pred = pj.shape[:2]
+    colors = plt.cm.viridis(np.linspace(0, 1, k))
+    fig = plt.figure(figsize=(14, 3.2 * (n_rows + 2)))
+    gs = fig.add_gridspec(n_rows + 2, 3)
+    for col, (h, name) in enumerate([(across, "front"), (depth, "side")]):
+        ax = fig.add_subplot(gs[0, col])
+        _draw(ax, xj[-1], parents, h, up, color="0.6", lw=3)
+        for i in range(k):
+            _draw(ax, pj[i, -1], parents, h, up, color=colors[i], lw=1, alpha=0.6)
+        _draw(ax, gj[-1], parents, h, up, color="k", lw=2, ls="--")
+        ax.set_title(f"{k} predicted end poses ({name} view); grey: last observed, dashed: truth", fontsize=9)
+        ax.set_aspect("equal")
+        ax.axis("off")
+    ax = fig.add_subplot(gs[0, 2])
+    end = pj[:, -1].reshape(k, -1)
+    d = np.linalg.norm(end[:, None] - end[None], axis=-1)
+    ax.imshow(d, cmap="magma")
+    ax.set_title("pairwise end-pose distance (m) between the K futures", fontsize=9)
+    ax.set_xticks([])
+    ax.set_yticks([])
+    times = np.linspace(0, t_pred - 1, n_frames).round().astype(int)
+    step = 1.2 * np.ptp(xj[..., across]) + 0.6
+    strips = [("truth", gj, "k")] + [(f"sample {i}", pj[i], colors[i]) for i in range(min(n_rows, k))]
+    for r, (name, seq, color) in enumerate(strips):
+        ax = fig.add_subplot(gs[r + 1, :])
+        _draw(ax, xj[-1], parents, across, up, dx=-step, color="0.6", lw=2)
+        for c, t in enumerate(times):
+            _draw(ax, seq[t], parents, across, up, dx=c * step, color=color, lw=2)
+            if r == 0:
+                ax.text(c * step, np.max(gj[..., up]) + 0.15, f"+{t + 1} fr", ha="center", fontsize=8)
+        ax.set_ylabel(name)
+        ax.set_aspect("equal")
+        ax.set_xticks([])
+        ax.set_yticks([])
+        for s in ax.spines.values():
+            s.set_visible(False)
+    fig.suptitle(title, fontsize=11)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+    return path
