@@ -53,7 +53,12 @@ class Config:
     dlow: DLowConfig = dataclasses.field(default_factory=DLowConfig)
     # One Q network is trained per K: DLow's K affine maps are a trained constant.
     eval_k: tuple[int, ...] = (50, 5)
-    mode_threshold: float = 0.25  # synthetic mode recall: ADE-term (m, over the D-vector) that counts as reaching a mode
+    # Synthetic mode recall is measured on test windows whose decision point is at most
+    # `mode_max_boundary` future frames away (there every pair of modes is >= 0.291 m apart in
+    # ADE-term); a sample reaches a mode when its ADE-term to it is below `mode_threshold`, less
+    # than half that separation, so one sample can never count for two modes.
+    mode_threshold: float = 0.14
+    mode_max_boundary: int = 15
     ckpt_every: int = 500
     log_every: int = 50
     eval_batch: int = 64

@@ -218,11 +218,13 @@ def evaluate(cfg: Config, prep: Prepared, params: dict, workdir: Path, data_labe
 
             m = metrics.evaluate_windows(chunks(), y, mm_sets, mm_deviation=cfg.mm_deviation)
             if modes is not None:
-                r = np.concatenate([a for a, _ in recalls])
-                w = np.concatenate([b for _, b in recalls])
+                sel = modes.boundary <= cfg.mode_max_boundary
+                r = np.concatenate([a for a, _ in recalls])[sel]
+                w = np.concatenate([b for _, b in recalls])[sel]
                 m["mode_recall"] = float(r.mean())
                 m["mode_recall_weighted"] = float(w.mean())
                 m["mode_threshold"] = cfg.mode_threshold
+                m["mode_windows"] = int(sel.sum())
             wall = time.perf_counter() - t0
             rec = {
                 "dataset": data_label or ds.name,
