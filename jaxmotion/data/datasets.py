@@ -1,0 +1,492 @@
+"""Dataset definitions under the evaluation protocol (PROTOCOL sec. 3), each a `MotionDataset`.
+
+| loader | data | fps | t_his -> t_pred | joints kept (root first) | train / test |
+| --- | --- | --- | --- | --- | --- |
+| `load_h36m` | `data_3d_h36m.npz` (VideoPose3D) | 50 | 25 -> 100 | 17 | S1 S5 S6 S7 S8 / S9 S11 |
+| `load_humaneva` | `data_3d_humaneva15.npz` (VideoPose3D) | 60 | 15 -> 60 | 15 | Train/S1-3 / Validate/S1-3 |
+| `load_bandai` | Bandai-Namco-2 BVH (tarball or folder) | 30 | 15 -> 60 | 21 (no `joint_Root`) | 4 styles / style normal |
+| `load_bvh_folder` | any folder of BVH files | file's | 0.5 s -> 2 s | all but a ground node | user's `split` (default all test) |
+
+Positions are global, in metres, `(T, J, 3)`; `windows.to_frames` makes them root-relative and
+drops the root. `load_dataset(spec)` picks the loader from a path. `info` records `up_axis` (for
+`augment.rotate_yaw`), `left_right_pairs` (for `augment.mirror`) and where the data came from.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import tarfile
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from jaxmotion.data.augment import left_right_pairs
+from jaxmotion.data.bvh import Bvh, forward_kinematics, read_bvh
+from jaxmotion.data.types import MotionDataset, Sequence, Skeleton
+
+# ----------------------------------------------------------------------------------------------
+# Human3.6M (VideoPose3D's data_3d_h36m.npz, metres, Z up)
+
+H36M_PARENTS_32 = (
+    -1, 0, 1, 2, 3, 4, 0, 6, 7, 8, 9, 0, 11, 12, 13, 14,
+    12, 16, 17, 18, 19, 20, 19, 22, 12, 24, 25, 26, 27, 28, 27, 30,
+)  # fmt: skip
+H36M_KEPT_JOINTS = (0, 1, 2, 3, 6, 7, 8, 12, 13, 14, 15, 17, 18, 19, 25, 26, 27)
+H36M_JOINT_NAMES = (
+    "Hip", "RHip", "RKnee", "RFoot", "LHip", "LKnee", "LFoot", "Spine", "Thorax", "Neck", "Head",
+    "LShoulder", "LElbow", "LWrist", "RShoulder", "RElbow", "RWrist",
+)  # fmt: skip
+
+def _h36m_parents() -> tuple[int, ...]:
+    """Returns the 17 kept joints' parents: nearest kept ancestor, shoulders rewired to the thorax.
+
+    Removing joints 16 and 24 (the shoulder blades, children of 12) would hang the shoulders on
+    kept joint 7 (32-joint 12, "Spine"); DLow and VideoPose3D then set `_parents[11] = 8` and
+    `_parents[14] = 8` (the thorax), the 17-joint tree everyone uses.
+    """
+    parents = list(_remap_parents(H36M_PARENTS_32, H36M_KEPT_JOINTS))
+    parents[11] = parents[14] = 8
+    return tuple(parents)
+
+
+H36M_TRAIN_SUBJECTS = ("S1", "S5", "S6", "S7", "S8")
+H36M_TEST_SUBJECTS = ("S9", "S11")
+
+# ----------------------------------------------------------------------------------------------
+# HumanEva-I (VideoPose3D's data_3d_humaneva15.npz, metres, Z up). Parents are DLow's /
+# VideoPose3D's `humaneva_skeleton`; the names are VideoPose3D's HUMANEVA_KEYPOINTS, and the two
+# agree: every limb hangs off thorax (arms, head) or pelvis (legs), left before right.
+
+HUMANEVA_PARENTS = (-1, 0, 1, 2, 3, 1, 5, 6, 0, 8, 9, 0, 11, 12, 1)
+HUMANEVA_JOINT_NAMES = (
+    "pelvis", "thorax", "lsho", "lelb", "lwri", "rsho", "relb", "rwri",
+    "lhip", "lkne", "lank", "rhip", "rkne", "rank", "head",
+)  # fmt: skip
+HUMANEVA_TRAIN_SUBJECTS = ("Train/S1", "Train/S2", "Train/S3")
+HUMANEVA_TEST_SUBJECTS = ("Validate/S1", "Validate/S2", "Validate/S3")
+# DLow: "these takes have wrong head position, excluded from training and testing".
+HUMANEVA_DROPPED = (
+    ("Train/S3", "Walking 1 chunk0"),
+    ("Train/S3", "Walking 1 chunk2"),
+    ("Validate/S3", "Walking 1 chunk4"),
+)
+
+# ----------------------------------------------------------------------------------------------
+# Bandai-Namco-2 (BVH, centimetres, Y up)
+
+BANDAI_TARBALL = "bandai2_dev.tar.xz"
+BANDAI_TRAIN_STYLES = ("active", "exhausted", "feminine", "masculine")
+BANDAI_TEST_STYLES = ("normal",)
+_BANDAI_NAME = re.compile(r"^dataset-2_(?P<content>[^_]+)_(?P<style>[^_]+)_(?P<id>\d+)$")
+
+# Skeletons whose units cannot be guessed from their size (see `guess_scale`).
+CMU_SCALE = 0.056444
+_KNOWN_SCALES = {frozenset({"Hips", "LHipJoint", "RHipJoint", "LowerBack"}): CMU_SCALE}
+
+
+def default_cache_dir() -> Path:
+    """Returns the folder the Bandai tarball is extracted into: `$XDG_CACHE_HOME/jaxmotion/bandai2`."""
+    return Path(os.environ.get("XDG_CACHE_HOME", "~/.cache")).expanduser() / "jaxmotion" / "bandai2"
+
+
+# ----------------------------------------------------------------------------------------------
+# npz datasets
+
+
+def load_h36m(npz_path: str | os.PathLike) -> MotionDataset:
+    """Returns Human3.6M under the protocol: 17 joints, 50 fps, 25 -> 100 frames, S9 S11 test.
+
+    `npz_path` is VideoPose3D's `data_3d_h36m.npz`: key `positions_3d` holding a pickled
+    `{subject: {action: (T, 32, 3) array}}` in metres. Subjects other than the seven of the
+    protocol are ignored; every protocol subject must be present.
+    """
+    path = Path(npz_path)
+    return _h36m_from_dict(_read_positions_3d(path), path)
+
+
+def load_humaneva(npz_path: str | os.PathLike) -> MotionDataset:
+    """Returns HumanEva-I under the protocol: 15 joints, 60 fps, 15 -> 60 frames, Validate/* test.
+
+    `npz_path` is VideoPose3D's `data_3d_humaneva15.npz`: key `positions_3d` holding a pickled
+    `{'Train/S1': {action: (T, 15, 3) array}, 'Validate/S1': ...}` in metres. DLow's three takes
+    with a wrong head position (`HUMANEVA_DROPPED`) are dropped when present.
+    """
+    path = Path(npz_path)
+    return _humaneva_from_dict(_read_positions_3d(path), path)
+
+
+def _read_positions_3d(path: Path) -> dict:
+    """Returns the `positions_3d` dict of a VideoPose3D npz, or raises ValueError naming `path`."""
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: npz file not found")
+    try:
+        with np.load(path, allow_pickle=True) as npz:
+            if "positions_3d" not in npz.files:
+                raise KeyError(f"no key 'positions_3d' (keys: {sorted(npz.files)})")
+            obj = npz["positions_3d"]
+            data = obj.item() if obj.dtype == object and obj.shape == () else obj
+    except KeyError as e:
+        raise ValueError(f"{path}: {e.args[0]}") from None
+    except Exception as e:  # zip, pickle and EOF errors from a corrupt or truncated file
+        raise ValueError(f"{path}: cannot read npz file ({type(e).__name__}: {e})") from e
+    if not isinstance(data, dict) or not all(isinstance(v, dict) for v in data.values()):
+        raise ValueError(f"{path}: 'positions_3d' must be a pickled dict {{subject: {{action: array}}}}")
+    return data
+
+
+def _npz_sequences(
+    data: dict, path: Path, subjects: tuple[str, ...], num_joints: int, fps: float,
+    keep: tuple[int, ...], dropped: tuple[tuple[str, str], ...] = (),
+) -> list[Sequence]:  # fmt: skip
+    missing = [s for s in subjects if s not in data]
+    if missing:
+        raise ValueError(f"{path}: subjects {missing} missing from 'positions_3d' (has {sorted(data)})")
+    out = []
+    for subject in subjects:
+        for action in sorted(data[subject]):
+            if (subject, action) in dropped:
+                continue
+            arr = np.asarray(data[subject][action])
+            where = f"{path}: positions_3d[{subject!r}][{action!r}]"
+            if arr.ndim != 3 or arr.shape[1:] != (num_joints, 3):
+                raise ValueError(f"{where} must be (T, {num_joints}, 3), got shape {arr.shape}")
+            if not np.issubdtype(arr.dtype, np.number) or not np.all(np.isfinite(arr)):
+                raise ValueError(f"{where} contains NaN, inf or non-numbers")
+            pos = arr[:, list(keep)].astype(np.float32)
+            out.append(Sequence(pos, fps, subject, action, name=f"{subject}/{action}"))
+    return out
+
+
+def _h36m_from_dict(data: dict, path: Path) -> MotionDataset:
+    seq = lambda subjects: _npz_sequences(data, path, subjects, 32, 50.0, H36M_KEPT_JOINTS)  # noqa: E731
+    names, parents = H36M_JOINT_NAMES, H36M_PARENTS
+    return MotionDataset(
+        name="h36m",
+        skeleton=Skeleton(names, parents),
+        fps=50.0,
+        t_his=25,
+        t_pred=100,
+        mm_threshold=0.5,
+        train=seq(H36M_TRAIN_SUBJECTS),
+        test=seq(H36M_TEST_SUBJECTS),
+        info={"source": str(path), "up_axis": 2, "left_right_pairs": left_right_pairs(names)},
+    )
+
+
+def _humaneva_from_dict(data: dict, path: Path) -> MotionDataset:
+    keep = tuple(range(15))
+    seq = lambda s: _npz_sequences(data, path, s, 15, 60.0, keep, HUMANEVA_DROPPED)  # noqa: E731
+    return MotionDataset(
+        name="humaneva",
+        skeleton=Skeleton(HUMANEVA_JOINT_NAMES, HUMANEVA_PARENTS),
+        fps=60.0,
+        t_his=15,
+        t_pred=60,
+        mm_threshold=0.5,
+        train=seq(HUMANEVA_TRAIN_SUBJECTS),
+        test=seq(HUMANEVA_TEST_SUBJECTS),
+        info={
+            "source": str(path),
+            "up_axis": 2,
+            "left_right_pairs": left_right_pairs(HUMANEVA_JOINT_NAMES),
+            "dropped": [f"{s}/{a}" for s, a in HUMANEVA_DROPPED if a in data.get(s, {})],
+        },
+    )
+
+
+def _remap_parents(parents: tuple[int, ...], keep: tuple[int, ...]) -> tuple[int, ...]:
+    """Returns the parents of the kept joints, each the nearest kept ancestor, as kept indices."""
+    new_index = {old: new for new, old in enumerate(keep)}
+    out = []
+    for j in keep:
+        p = parents[j]
+        while p >= 0 and p not in new_index:
+            p = parents[p]
+        out.append(new_index[p] if p >= 0 else -1)
+    if out.count(-1) != 1 or out[0] != -1:
+        raise ValueError(f"kept joints {keep} must contain the root first and one root only")
+    return tuple(out)
+
+
+H36M_PARENTS = _h36m_parents()  # (-1, 0, 1, 2, 0, 4, 5, 0, 7, 8, 9, 8, 11, 12, 8, 14, 15)
+
+
+# ----------------------------------------------------------------------------------------------
+# BVH datasets
+
+
+def load_bandai(root: str | os.PathLike, cache_dir: str | os.PathLike | None = None) -> MotionDataset:
+    """Returns Bandai-Namco-2 under the protocol: 21 joints (Hips root), 30 fps, 15 -> 60 frames.
+
+    `root` is the folder holding `bandai2_dev.tar.xz` (extracted once into `cache_dir`, default
+    `default_cache_dir()`, and reused from there) or a folder of already extracted clips. Train
+    are the styles active, exhausted, feminine, masculine; test is style normal; other styles are
+    skipped. A sequence's action is its content label without the `dataset-2_` prefix (`walk`,
+    `wave-left-hand`, ...). Labels come from the file name and are checked against the JSON beside
+    each clip when `content_label.txt` / `style_label.txt` are found. The files name no actor, so
+    `subject` is `"unknown"`. `joint_Root` (a ground node) is dropped; cm -> m.
+    """
+    root = Path(root).expanduser()
+    clip_dir = _bandai_clip_dir(root, cache_dir)
+    files = sorted(p for p in clip_dir.iterdir() if p.suffix == ".bvh" and _BANDAI_NAME.match(p.stem))
+    if not files:
+        raise ValueError(f"{clip_dir}: no Bandai-Namco-2 clips (dataset-2_{{content}}_{{style}}_{{id}}.bvh)")
+    contents, styles = _bandai_labels(root, clip_dir)
+
+    train, test, skipped = [], [], 0
+    skeleton = None
+    for f in files:
+        m = _BANDAI_NAME.match(f.stem)
+        content, style = m["content"], m["style"]
+        if contents is not None:
+            _check_bandai_json(f, content, style, contents, styles)
+        if style not in BANDAI_TRAIN_STYLES + BANDAI_TEST_STYLES:
+            skipped += 1
+            continue
+        bvh = read_bvh(f)
+        if abs(bvh.fps - 30.0) > 0.1:
+            raise ValueError(f"{f}: expected 30 fps, file says {bvh.fps:.3f}")
+        if bvh.names[0] != "joint_Root" or len(bvh.names) < 2 or bvh.names[1] != "Hips":
+            raise ValueError(f"{f}: expected joint_Root then Hips, got {bvh.names[:2]}")
+        names, parents, positions = _bvh_positions(bvh, scale=0.01, drop_root=True)
+        if skeleton is None:
+            skeleton = Skeleton(names, parents)
+        elif (names, parents) != (skeleton.names, skeleton.parents):
+            raise ValueError(f"{f}: skeleton differs from {files[0].name}'s")
+        seq = Sequence(positions, 30.0, "unknown", content, name=f.stem)
+        (test if style in BANDAI_TEST_STYLES else train).append(seq)
+    if skeleton is None:
+        styles = BANDAI_TRAIN_STYLES + BANDAI_TEST_STYLES
+        raise ValueError(f"{clip_dir}: no clip has a protocol style {styles}")
+    return MotionDataset(
+        name="bandai2",
+        skeleton=skeleton,
+        fps=30.0,
+        t_his=15,
+        t_pred=60,
+        mm_threshold=0.5,
+        train=train,
+        test=test,
+        info={
+            "source": str(clip_dir),
+            "up_axis": 1,
+            "left_right_pairs": left_right_pairs(skeleton.names),
+            "skipped_clips": skipped,
+        },
+    )
+
+
+def _bandai_clip_dir(root: Path, cache_dir: str | os.PathLike | None) -> Path:
+    """Returns the folder of extracted clips, extracting the tarball into the cache if needed."""
+    tarball = root / BANDAI_TARBALL
+    if not tarball.is_file():
+        if not root.is_dir():
+            raise FileNotFoundError(f"{root}: no such folder (expected {BANDAI_TARBALL} or extracted clips)")
+        return root
+    cache = Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()
+    done = cache / ".extracted"
+    stamp = str(tarball.stat().st_size)
+    if done.is_file() and done.read_text().strip() == stamp:
+        return cache
+    if cache.exists() and not done.is_file() and any(cache.iterdir()):
+        # Never delete a folder this loader did not fill.
+        raise ValueError(f"{cache}: cache folder exists but holds no extraction of {tarball}; remove it")
+    # Extract into a private folder and rename, so an interrupted or concurrent extraction never
+    # leaves a half-filled cache that a later run would trust.
+    cache.parent.mkdir(parents=True, exist_ok=True)
+    tmp = cache.parent / f".{cache.name}.tmp-{os.getpid()}"
+    try:
+        with tarfile.open(tarball) as tf:
+            tf.extractall(tmp, filter="data")
+    except (tarfile.TarError, EOFError, OSError) as e:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise ValueError(f"{tarball}: cannot extract ({type(e).__name__}: {e})") from e
+    (tmp / ".extracted").write_text(stamp)
+    if cache.exists():  # empty, or a stale extraction of an older tarball
+        shutil.rmtree(cache, ignore_errors=True)
+    try:
+        tmp.rename(cache)
+    except OSError:
+        shutil.rmtree(tmp, ignore_errors=True)
+        if not (done.is_file() and done.read_text().strip() == stamp):
+            raise
+        # Another process finished the same extraction first; use theirs.
+    return cache
+
+
+def _bandai_labels(root: Path, clip_dir: Path) -> tuple[list[str] | None, list[str] | None]:
+    """Returns the content and style label names (without `dataset-2_`), or Nones if absent."""
+    for d in (root, clip_dir):
+        c, s = d / "content_label.txt", d / "style_label.txt"
+        if c.is_file() and s.is_file():
+            return _label_names(c), _label_names(s)
+    return None, None
+
+
+def _label_names(path: Path) -> list[str]:
+    return [x.removeprefix("dataset-2_") for x in path.read_text().split()]
+
+
+def _check_bandai_json(f: Path, content: str, style: str, contents: list[str], styles: list[str]) -> None:
+    j = f.with_suffix(".json")
+    if not j.is_file():
+        return
+    try:
+        label = json.loads(j.read_text())
+        c, s = contents[int(label["content"])], styles[int(label["style"])]
+    except (ValueError, KeyError, IndexError, TypeError) as e:
+        raise ValueError(f"{j}: bad label file ({type(e).__name__}: {e})") from None
+    if (c, s) != (content, style):
+        raise ValueError(f"{j}: labels say content {c!r} style {s!r}, file name says {content!r} {style!r}")
+
+
+def load_bvh_folder(
+    path: str | os.PathLike,
+    *,
+    scale: float | None = None,
+    split: Callable[[Path], str | None] | None = None,
+    downsample: int = 1,
+    t_his: int | None = None,
+    t_pred: int | None = None,
+    mm_threshold: float = 0.5,
+    name: str | None = None,
+) -> MotionDataset:
+    """Returns a dataset of every `*.bvh` under `path` (recursively, sorted by path).
+
+    All joints are kept except a ground node: a root with a zero offset, exactly one child and
+    constant channels (e.g. Bandai's `joint_Root`). `scale` converts file units to metres; None
+    means `guess_scale` (CMU's cgspeed skeleton is recognised, 0.056444 m/unit). `split(file)`
+    returns "train", "test" or None (skip the file); by default every file is test. Every
+    `downsample`-th frame is kept. `t_his` / `t_pred` default to 0.5 s / 2 s at the resulting
+    frame rate, as for Human3.6M and Bandai. A sequence's subject is the file stem before its first
+    `_` (CMU's `SS_TT` naming) and its action the whole stem. All files must share one skeleton
+    and frame rate.
+    """
+    root = Path(path).expanduser()
+    if not root.is_dir():
+        raise FileNotFoundError(f"{root}: no such folder")
+    files = sorted(root.rglob("*.bvh"))
+    if not files:
+        raise ValueError(f"{root}: no .bvh files")
+    if downsample < 1:
+        raise ValueError(f"load_bvh_folder: downsample must be >= 1, got {downsample}")
+    train, test = [], []
+    skeleton, fps, first = None, None, None
+    for f in files:
+        which = "test" if split is None else split(f)
+        if which not in ("train", "test", None):
+            raise ValueError(f"load_bvh_folder: split({f}) returned {which!r}, not 'train', 'test' or None")
+        if which is None:
+            continue
+        bvh = read_bvh(f)
+        file_scale = guess_scale(bvh) if scale is None else scale
+        names, parents, positions = _bvh_positions(bvh, file_scale, drop_root=_is_ground_node(bvh))
+        positions = positions[::downsample]
+        f_fps = bvh.fps / downsample
+        if skeleton is None:
+            skeleton, fps, first = Skeleton(names, parents), f_fps, f
+        elif (names, parents) != (skeleton.names, skeleton.parents):
+            raise ValueError(f"{f}: skeleton differs from {first}'s")
+        elif abs(f_fps - fps) > 0.01 * fps:
+            raise ValueError(f"{f}: {f_fps:.3f} fps but {first} has {fps:.3f}")
+        stem = f.stem
+        seq = Sequence(positions, fps, stem.split("_")[0], stem, name=str(f.relative_to(root)))
+        (train if which == "train" else test).append(seq)
+    if skeleton is None:
+        raise ValueError(f"{root}: split() skipped every file")
+    fps = round(fps, 3)
+    return MotionDataset(
+        name=name or root.name,
+        skeleton=skeleton,
+        fps=fps,
+        t_his=t_his if t_his is not None else max(1, round(0.5 * fps)),
+        t_pred=t_pred if t_pred is not None else max(1, round(2.0 * fps)),
+        mm_threshold=mm_threshold,
+        train=train,
+        test=test,
+        info={"source": str(root), "up_axis": 1, "left_right_pairs": left_right_pairs(skeleton.names)},
+    )
+
+
+def guess_scale(bvh: Bvh) -> float:
+    """Returns metres per file unit: a known skeleton's, else a power of ten from the body size.
+
+    The size is the largest distance between two body joints in the rest pose (offsets only); a human
+    measures 1-2.5 m, so a size in [0.5, 5) means metres, [50, 500) centimetres, [500, 5000)
+    millimetres. Anything else (e.g. inches) needs an explicit scale.
+    """
+    names = set(bvh.names)
+    for known, s in _KNOWN_SCALES.items():
+        if known <= names:
+            return s
+    rest = np.zeros((bvh.num_joints, 3))
+    for j, p in enumerate(bvh.parents):
+        rest[j] = bvh.offsets[j] + (rest[p] if p >= 0 else 0.0)
+    if _is_ground_node(bvh):
+        rest = rest[1:]  # the body's offset from a ground node says nothing about its size
+    size = float(np.max(np.linalg.norm(rest[:, None] - rest[None], axis=-1)))
+    for lo, s in ((0.5, 1.0), (50.0, 0.01), (500.0, 0.001)):
+        if lo <= size < 10 * lo:
+            return s
+    raise ValueError(f"{bvh.path}: cannot guess units from a rest-pose size of {size:.3g}; pass scale=")
+
+
+def _is_ground_node(bvh: Bvh) -> bool:
+    """Returns whether the root is a ground node: zero offset, one child, constant channels."""
+    one_child = sum(p == 0 for p in bvh.parents) == 1
+    root_values = bvh.motion[:, : len(bvh.channels[0])]
+    still = root_values.size == 0 or bool(np.all(root_values == root_values[:1]))
+    return one_child and bool(np.all(bvh.offsets[0] == 0)) and still
+
+
+def _bvh_positions(
+    bvh: Bvh, scale: float, drop_root: bool
+) -> tuple[tuple[str, ...], tuple[int, ...], np.ndarray]:
+    """Returns `(names, parents, positions (F, J, 3) float32 metres)`, without the root if asked."""
+    positions = forward_kinematics(bvh) * scale
+    if not drop_root:
+        return bvh.names, bvh.parents, positions.astype(np.float32)
+    keep = tuple(range(1, bvh.num_joints))
+    # The old root's only child becomes the root, so it is index 0 and its parent -1.
+    parents = tuple(-1 if p <= 0 else p - 1 for p in (bvh.parents[j] for j in keep))
+    return bvh.names[1:], parents, positions[:, 1:].astype(np.float32)
+
+
+# ----------------------------------------------------------------------------------------------
+
+
+def load_dataset(spec: str | os.PathLike, **options) -> MotionDataset:
+    """Returns the dataset that `spec` points to; `options` go to the chosen loader.
+
+    - `*.npz`: Human3.6M if `positions_3d` has subject keys `S1`, `S9`, ..., HumanEva-I if it has
+      `Train/S1`, `Validate/S1`, ...
+    - a folder with `bandai2_dev.tar.xz` or `dataset-2_*.bvh` clips: `load_bandai`.
+    - another folder with `.bvh` files: `load_bvh_folder`.
+    """
+    path = Path(spec).expanduser()
+    if path.suffix == ".npz":
+        if options:
+            raise ValueError(f"load_dataset: {path} is an npz dataset; it takes no options {sorted(options)}")
+        data = _read_positions_3d(path)
+        keys = list(data)
+        if keys and all(re.fullmatch(r"S\d+", str(k)) for k in keys):
+            return _h36m_from_dict(data, path)
+        if keys and all(re.fullmatch(r"(Train|Validate)/S\d+", str(k)) for k in keys):
+            return _humaneva_from_dict(data, path)
+        raise ValueError(
+            f"{path}: 'positions_3d' keys {sorted(map(str, keys))[:5]} are neither Human3.6M subjects "
+            "('S1', ...) nor HumanEva-I ('Train/S1', 'Validate/S1', ...)"
+        )
+    if path.is_dir():
+        if (path / BANDAI_TARBALL).is_file() or any(path.glob("dataset-2_*.bvh")):
+            return load_bandai(path, **options)
+        if any(path.rglob("*.bvh")):
+            return load_bvh_folder(path, **options)
+        raise ValueError(f"{path}: folder has neither {BANDAI_TARBALL} nor .bvh files")
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such file or folder")
+    raise ValueError(f"{path}: expected a .npz file or a folder of BVH files")
