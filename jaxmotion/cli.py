@@ -33,7 +33,7 @@ def _parser() -> argparse.ArgumentParser:
         if name == "sample":
             s.add_argument("--window", type=int, default=0, help="test window index")
             s.add_argument("--k", type=int, default=None, help="number of futures (default: largest K of the config)")
-            s.add_argument("--method", default="dlow", choices=["dlow", "cvae", "zero_velocity"])
+            s.add_argument("--method", default=None, help="which sampler (default: the config's method; also cvae, zero_velocity)")
     return p
 
 
@@ -54,10 +54,11 @@ def main(argv: list[str] | None = None) -> int:
         f"{len(prep.windows)} test windows ({time.perf_counter() - t0:.1f}s)",
         flush=True,
     )
+    method = experiment.get_method(cfg.method)
     if args.command in ("run", "train"):
-        params = experiment.train_all(cfg, prep, workdir, resume=args.resume)
+        params = method.train(cfg, prep, workdir, resume=args.resume)
     else:
-        params = experiment.restore_all(cfg, prep, workdir)
+        params = method.restore(cfg, prep, workdir)
     if args.command in ("run", "eval"):
         experiment.evaluate(cfg, prep, params, workdir, label)
         png = experiment.report(cfg, prep, params, workdir)
@@ -72,9 +73,11 @@ def main(argv: list[str] | None = None) -> int:
         if not 0 <= args.window < len(prep.windows):
             raise SystemExit(f"--window must be in [0, {len(prep.windows)}), got {args.window}")
         k = args.k or max(cfg.eval_k)
-        if args.method == "dlow" and k not in cfg.eval_k:
-            raise SystemExit(f"--k {k}: DLow was trained for K in {cfg.eval_k} (one Q network per K)")
-        fn = experiment.predictors(cfg, ds, params, k)[args.method]
+        args.method = args.method or cfg.method
+        fns = method.predictors(cfg, ds, params, k)
+        if args.method not in fns:
+            raise SystemExit(f"--method {args.method} --k {k}: available here: {sorted(fns)} (DLow was trained for K in {cfg.eval_k}, one Q network per K)")
+        fn = fns[args.method]
         i = args.window
         preds = np.asarray(fn(jnp.asarray(prep.x[i : i + 1]), jax.random.key(cfg.seed)))[0]
         out = workdir / f"sample_w{i}_{args.method}_k{k}"

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import importlib.util
 from pathlib import Path
+from typing import Any
 
 
 @dataclasses.dataclass
@@ -47,6 +48,7 @@ class Config:
     """Everything `jaxmotion run/train/eval/sample` needs; defaults are the built-in synthetic job."""
 
     name: str = "dlow_synthetic"
+    method: str = "dlow"  # a key of jaxmotion.experiment.METHODS
     dataset: str = "synthetic"  # "synthetic", or a path: BVH folder, Bandai-Namco-2 folder, H36M/HumanEva npz
     seed: int = 0
     cvae: CVAEConfig = dataclasses.field(default_factory=CVAEConfig)
@@ -64,6 +66,10 @@ class Config:
     eval_batch: int = 64
     max_test_windows: int | None = None  # None: every protocol window
     mm_deviation: str | None = None  # None (protocol), "divsamp" or "comusion"
+    # Method-specific settings of methods other than DLow (their config dataclasses live beside
+    # their models); None when unused.
+    mojo: Any = None
+    divsamp: Any = None
 
 
 def load_config(path: str | Path | None) -> Config:
