@@ -1,0 +1,556 @@
+"""Diversity and accuracy metrics of stochastic motion prediction (PROTOCOL sec. 2, DLow definitions).
+
+Shapes: predictions `pred (N, K, t_pred, D)`, ground truth `gt (N, t_pred, D)`; every distance is
+Euclidean over the whole D-vector of a frame (or over the whole `t_pred * D` vector for APD).
+
+Every metric is first computed per window (functions returning `(N,)` arrays, all jittable), then
+averaged over windows by `evaluate_windows`, which streams over window chunks so that
+`N * K * t_pred * D` predictions never have to exist at once, and which is the only place where the
+known deviations of published code (`mm_deviation="divsamp" | "comusion"`) can be switched on.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+from functools import partial
+from typing import Literal, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import lax
+from jaxtyping import Array, Bool, Float, Int
+
+MMDeviation = Literal[None, "divsamp", "comusion"]
+
+METRIC_NAMES = ("APD", "ADE", "FDE", "MMADE", "MMFDE", "ADE-m", "FDE-m")
+
+
+class MMSets(NamedTuple):
+    """Multimodal ground-truth sets, left-packed: `idx[i, :count_i]` are valid where `mask` is True."""
+
+    idx: Int[Array, "n m"]
+    mask: Bool[Array, "n m"]
+
+
+# --------------------------------------------------------------------------------------------
+# Boundary checks: run on concrete inputs only, so the public functions still trace under jit.
+
+
+def _is_traced(x) -> bool:
+    return isinstance(x, jax.core.Tracer)
+
+
+def _check(fn: str, name: str, x, ndim: int, *, finite: bool = True):
+    if not hasattr(x, "ndim"):
+        x = np.asarray(x)
+    if x.ndim != ndim:
+        raise ValueError(f"{fn}: `{name}` must have {ndim} dimensions, got shape {tuple(x.shape)}")
+    if finite and not _is_traced(x) and not np.all(np.isfinite(np.asarray(x))):
+        raise ValueError(f"{fn}: `{name}` contains NaN or inf")
+    return x
+
+
+def _check_same(fn: str, what: str, a_name: str, a: object, b_name: str, b: object):
+    if a != b:
+        raise ValueError(f"{fn}: {what} of `{a_name}` ({a}) does not match that of `{b_name}` ({b})")
+
+
+def _check_pred_gt(fn: str, pred, gt):
+    pred = _check(fn, "pred", pred, 4)
+    gt = _check(fn, "gt", gt, 3)
+    _check_same(fn, "number of windows", "pred", pred.shape[0], "gt", gt.shape[0])
+    _check_same(fn, "t_pred", "pred", pred.shape[2], "gt", gt.shape[1])
+    _check_same(fn, "D", "pred", pred.shape[3], "gt", gt.shape[2])
+    return jnp.asarray(pred, jnp.float32), jnp.asarray(gt, jnp.float32)
+
+
+def _check_mm(fn: str, pred, futures, idx, mask):
+    pred = _check(fn, "pred", pred, 4)
+    futures = _check(fn, "futures", futures, 3)
+    idx = _check(fn, "idx", idx, 2, finite=False)
+    mask = _check(fn, "mask", mask, 2, finite=False)
+    _check_same(fn, "number of windows", "pred", pred.shape[0], "idx", idx.shape[0])
+    _check_same(fn, "shape", "idx", idx.shape, "mask", mask.shape)
+    _check_same(fn, "t_pred", "pred", pred.shape[2], "futures", futures.shape[1])
+    _check_same(fn, "D", "pred", pred.shape[3], "futures", futures.shape[2])
+    if not _is_traced(idx) and not _is_traced(mask):
+        i, m = np.asarray(idx), np.asarray(mask, bool)
+        if m.any() and (i[m].min() < 0 or i[m].max() >= futures.shape[0]):
+            raise ValueError(f"{fn}: `idx` has entries outside [0, {futures.shape[0]}) where `mask` is True")
+    return (
+        jnp.asarray(pred, jnp.float32),
+        jnp.asarray(futures, jnp.float32),
+        jnp.asarray(idx, jnp.int32),
+        jnp.asarray(mask, bool),
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Per-window metrics.
+
+
+def _frame_dists(pred: Float[Array, "n k t d"], gt: Float[Array, "n t d"]) -> Float[Array, "n k t"]:
+    return jnp.sqrt(jnp.sum((pred - gt[:, None]) ** 2, axis=-1))
+
+
+@jax.jit
+def _ade_terms(pred: Float[Array, "n k t d"], gt: Float[Array, "n t d"]) -> Float[Array, "n k"]:
+    return jnp.mean(_frame_dists(pred, gt), axis=-1)
+
+
+@jax.jit
+def _fde_terms(pred: Float[Array, "n k t d"], gt: Float[Array, "n t d"]) -> Float[Array, "n k"]:
+    return _frame_dists(pred[:, :, -1:], gt[:, -1:])[..., 0]
+
+
+@partial(jax.jit, static_argnames="how")
+def _reduce_k(terms: Float[Array, "n k"], how: Literal["min", "median"]) -> Float[Array, " n"]:
+    return jnp.min(terms, axis=-1) if how == "min" else jnp.median(terms, axis=-1)
+
+
+@jax.jit
+def _apd(pred: Float[Array, "n k t d"]) -> Float[Array, " n"]:
+    n, k = pred.shape[:2]
+    if k == 1:
+        return jnp.zeros((n,), jnp.float32)
+    x = pred.reshape(n, k, -1)
+    upper = jnp.arange(k)
+
+    # One row of the K x K distance matrix at a time keeps memory at O(N K t_pred D) and uses
+    # exact differences (a Gram-matrix shortcut loses precision for near-identical samples).
+    def row_sum(i):
+        d = jnp.sqrt(jnp.sum((x - x[:, i][:, None]) ** 2, axis=-1))
+        return jnp.sum(jnp.where(upper > i, d, 0.0), axis=-1)
+
+    total = jnp.sum(lax.map(row_sum, jnp.arange(k)), axis=0)
+    return total / (k * (k - 1) / 2)
+
+
+def apd(pred: Float[Array, "n k t d"]) -> Float[Array, " n"]:
+    """Returns per-window APD `mean_{i<j} ||vec(Yhat_i) - vec(Yhat_j)||_2` (PROTOCOL sec. 2); 0 when K = 1."""
+    pred = jnp.asarray(_check("apd", "pred", pred, 4), jnp.float32)
+    return _apd(pred)
+
+
+def ade(pred: Float[Array, "n k t d"], gt: Float[Array, "n t d"]) -> Float[Array, " n"]:
+    """Returns per-window ADE `min_k (1/t_pred) sum_t ||Yhat_{k,t} - Y_t||_2` (PROTOCOL sec. 2)."""
+    pred, gt = _check_pred_gt("ade", pred, gt)
+    return _reduce_k(_ade_terms(pred, gt), "min")
+
+
+def fde(pred: Float[Array, "n k t d"], gt: Float[Array, "n t d"]) -> Float[Array, " n"]:
+    """Returns per-window FDE `min_k ||Yhat_{k,T} - Y_T||_2` (PROTOCOL sec. 2)."""
+    pred, gt = _check_pred_gt("fde", pred, gt)
+    return _reduce_k(_fde_terms(pred, gt), "min")
+
+
+def ade_median(pred: Float[Array, "n k t d"], gt: Float[Array, "n t d"]) -> Float[Array, " n"]:
+    """Returns per-window ADE-m: the ADE term's median over k instead of its min (PROTOCOL sec. 2).
+
+    For even K the median is the mean of the two middle values (numpy's convention).
+    """
+    pred, gt = _check_pred_gt("ade_median", pred, gt)
+    return _reduce_k(_ade_terms(pred, gt), "median")
+
+
+def fde_median(pred: Float[Array, "n k t d"], gt: Float[Array, "n t d"]) -> Float[Array, " n"]:
+    """Returns per-window FDE-m: the FDE term's median over k instead of its min (PROTOCOL sec. 2)."""
+    pred, gt = _check_pred_gt("fde_median", pred, gt)
+    return _reduce_k(_fde_terms(pred, gt), "median")
+
+
+# --------------------------------------------------------------------------------------------
+# Multimodal ground truth.
+
+
+def multimodal_gt(
+    last_poses: Float[Array, "n d"],
+    thr: float,
+    *,
+    exclude_self: bool = False,
+    reference_last_poses: Float[Array, "r d"] | None = None,
+    max_chunk_elems: int = 2_000_000,
+) -> MMSets:
+    """Returns left-packed `MMSets(idx (N, M), mask (N, M))` with `MM(i) = {j : ||c_i - c_j||_2 < thr}` (PROTOCOL sec. 2).
+
+    `M` is the largest set size. By default the candidates `j` are the test windows themselves and
+    `MM(i)` includes `i` (`exclude_self=True` drops it). With `reference_last_poses` (e.g. the last
+    observed poses of training windows, for MotionMap comparisons) the candidates are those
+    reference windows instead, `idx` indexes the matching reference futures, and a window's own
+    ground truth is not a member; such a window may have an empty set.
+
+    The set sizes are data dependent, so this runs on the host, in float64 and with exact
+    differences like DLow's `scipy.spatial.distance.pdist`, so that pairs near `thr` fall on the
+    same side as in published code. Rows are processed in chunks of about `max_chunk_elems`
+    numbers, so memory stays small for N of many thousands.
+    """
+    fn = "multimodal_gt"
+    c = np.asarray(_check(fn, "last_poses", last_poses, 2), np.float64)
+    if not np.isfinite(thr) or thr <= 0:
+        raise ValueError(f"{fn}: `thr` must be a positive finite distance, got {thr}")
+    if reference_last_poses is None:
+        ref = c
+    else:
+        if exclude_self:
+            raise ValueError(f"{fn}: `exclude_self` has no meaning with `reference_last_poses`")
+        ref = np.asarray(_check(fn, "reference_last_poses", reference_last_poses, 2), np.float64)
+        _check_same(fn, "D", "last_poses", c.shape[1], "reference_last_poses", ref.shape[1])
+    n, n_ref = c.shape[0], ref.shape[0]
+    rows_per_chunk = max(1, max_chunk_elems // max(1, n_ref * c.shape[1]))
+    rows, cols = [], []
+    for s in range(0, n, rows_per_chunk):
+        diff = c[s : s + rows_per_chunk, None, :] - ref[None]
+        near = np.sqrt(np.einsum("ijk,ijk->ij", diff, diff)) < thr
+        if reference_last_poses is None:
+            # Decide self-membership by index so that `exclude_self` removes exactly window i,
+            # never another window that happens to share its pose.
+            r = np.arange(near.shape[0])
+            near[r, s + r] = not exclude_self
+        i, j = np.nonzero(near)
+        rows.append(i + s)
+        cols.append(j)
+    rows, cols = np.concatenate(rows), np.concatenate(cols)
+    counts = np.bincount(rows, minlength=n)
+    m = max(1, int(counts.max(initial=0)))
+    # np.nonzero returns row-major order, so each row's members are contiguous.
+    pos = np.arange(rows.size) - np.repeat(np.cumsum(counts) - counts, counts)
+    idx = np.zeros((n, m), np.int32)
+    mask = np.zeros((n, m), bool)
+    idx[rows, pos] = cols
+    mask[rows, pos] = True
+    return MMSets(jnp.asarray(idx), jnp.asarray(mask))
+
+
+def _mm_batch(
+    pred: Float[Array, "b k t d"],
+    idx: Int[Array, "b m"],
+    mask: Bool[Array, "b m"],
+    futures: Float[Array, "r t d"],
+) -> tuple[Float[Array, " b"], Float[Array, " b"]]:
+    # One set member per step for the whole batch: memory stays at one (b, K, t_pred, D)
+    # difference whatever M is, and the loop stops at the batch's last valid member, so cost
+    # follows the actual set sizes rather than the global M.
+    n_iter = jnp.max(jnp.where(mask, jnp.arange(1, mask.shape[1] + 1), 0))
+
+    def body(m, carry):
+        s_ade, s_fde = carry
+        d = jnp.sqrt(jnp.sum((pred - futures[idx[:, m]][:, None]) ** 2, axis=-1))
+        s_ade += jnp.where(mask[:, m], jnp.min(jnp.mean(d, axis=-1), axis=-1), 0.0)
+        s_fde += jnp.where(mask[:, m], jnp.min(d[..., -1], axis=-1), 0.0)
+        return s_ade, s_fde
+
+    zeros = jnp.zeros(pred.shape[0], jnp.float32)
+    s_ade, s_fde = lax.fori_loop(0, n_iter, body, (zeros, zeros))
+    count = jnp.sum(mask, axis=1)
+    # 0 / 0 = NaN for an empty set on purpose: the aggregation decides what an empty set means.
+    return s_ade / count, s_fde / count
+
+
+@partial(jax.jit, static_argnames="batch_size")
+def _mm_errors(pred, futures, idx, mask, batch_size):
+    n = pred.shape[0]
+    b = max(1, min(batch_size, n))
+    pad = -n % b
+
+    def batched(x):
+        x = jnp.concatenate([x, jnp.zeros((pad,) + x.shape[1:], x.dtype)])
+        return x.reshape((-1, b) + x.shape[1:])
+
+    xs = (batched(pred), batched(idx), batched(mask))
+    mm_ade, mm_fde = lax.map(lambda a: _mm_batch(*a, futures), xs)
+    return mm_ade.reshape(-1)[:n], mm_fde.reshape(-1)[:n]
+
+
+def mm_errors(
+    pred: Float[Array, "n k t d"],
+    futures: Float[Array, "r t d"],
+    idx: Int[Array, "n m"],
+    mask: Bool[Array, "n m"],
+    *,
+    batch_size: int = 16,
+) -> tuple[Float[Array, " n"], Float[Array, " n"]]:
+    """Returns per-window `(MMADE, MMFDE)`: mean over `m in MM(i)` of `min_k` ADE/FDE term vs `futures[m]` (PROTOCOL sec. 2).
+
+    `idx`/`mask` come from `multimodal_gt`; `futures` are the futures it indexes (the test
+    ground truth, or the reference futures). Windows with an empty set give NaN. Windows are
+    processed `batch_size` at a time so memory is `O(batch_size * K * t_pred * D)` whatever M is.
+    """
+    pred, futures, idx, mask = _check_mm("mm_errors", pred, futures, idx, mask)
+    return _mm_errors(pred, futures, idx, mask, batch_size)
+
+
+def mmade(
+    pred: Float[Array, "n k t d"],
+    futures: Float[Array, "r t d"],
+    idx: Int[Array, "n m"],
+    mask: Bool[Array, "n m"],
+    *,
+    batch_size: int = 16,
+) -> Float[Array, " n"]:
+    """Returns per-window MMADE `mean_{m in MM(i)} min_k ADE-term(Yhat_k, Y_m)` (PROTOCOL sec. 2); see `mm_errors`."""
+    return mm_errors(pred, futures, idx, mask, batch_size=batch_size)[0]
+
+
+def mmfde(
+    pred: Float[Array, "n k t d"],
+    futures: Float[Array, "r t d"],
+    idx: Int[Array, "n m"],
+    mask: Bool[Array, "n m"],
+    *,
+    batch_size: int = 16,
+) -> Float[Array, " n"]:
+    """Returns per-window MMFDE `mean_{m in MM(i)} min_k ||Yhat_{k,T} - Y_{m,T}||` (PROTOCOL sec. 2); see `mm_errors`."""
+    return mm_errors(pred, futures, idx, mask, batch_size=batch_size)[1]
+
+
+def reduce_mm(
+    per_window: Float[Array, " n"],
+    n_members: Int[Array, " n"],
+    n_others: Int[Array, " n"],
+    mm_deviation: MMDeviation = None,
+) -> tuple[float, int]:
+    """Returns `(average over windows, number of windows averaged)` of an MM metric (PROTOCOL sec. 2).
+
+    `per_window` must have been computed on the sets the deviation prescribes, `n_members` is the
+    size of those sets and `n_others` the number of members other than the window itself.
+    - `None` (protocol): mean over windows with a non-empty set (all of them when MM(i) includes i).
+    - `"divsamp"`: sets exclude i; windows with no neighbour are skipped, but the sum is divided
+      by the full window count (DivSamp's published code).
+    - `"comusion"`: windows whose only member is themselves are dropped (CoMusion's published code).
+    """
+    v = np.asarray(per_window, np.float64)
+    n_members, n_others = np.asarray(n_members), np.asarray(n_others)
+    if mm_deviation is None:
+        keep = n_members > 0
+        return float(v[keep].mean()) if keep.any() else float("nan"), int(keep.sum())
+    if mm_deviation == "divsamp":
+        keep = n_members > 0
+        return float(v[keep].sum() / v.shape[0]), int(keep.sum())
+    if mm_deviation == "comusion":
+        keep = n_others > 0
+        return float(v[keep].mean()) if keep.any() else float("nan"), int(keep.sum())
+    raise ValueError(f"reduce_mm: `mm_deviation` must be None, 'divsamp' or 'comusion', got {mm_deviation!r}")
+
+
+# --------------------------------------------------------------------------------------------
+# Streaming evaluation.
+
+
+@jax.jit
+def _chunk_metrics(pred, gt, futures, idx, mask):
+    ade_k = _ade_terms(pred, gt)
+    fde_k = _fde_terms(pred, gt)
+    mm_ade, mm_fde = _mm_batch(pred, idx, mask, futures)
+    return {
+        "APD": _apd(pred),
+        "ADE": jnp.min(ade_k, axis=-1),
+        "FDE": jnp.min(fde_k, axis=-1),
+        "MMADE": mm_ade,
+        "MMFDE": mm_fde,
+        "ADE-m": jnp.median(ade_k, axis=-1),
+        "FDE-m": jnp.median(fde_k, axis=-1),
+    }
+
+
+def _pred_chunks(pred, chunk_size: int) -> Iterator[np.ndarray | jax.Array]:
+    pieces = [pred] if hasattr(pred, "shape") else pred
+    for piece in pieces:
+        if not hasattr(piece, "shape"):
+            piece = np.asarray(piece)
+        if piece.ndim != 4:
+            raise ValueError(
+                f"evaluate_windows: `pred` (or a chunk of it) must be (n, K, t_pred, D), got {tuple(piece.shape)}"
+            )
+        for s in range(0, piece.shape[0], chunk_size):
+            yield piece[s : s + chunk_size]
+
+
+def window_metrics(
+    pred: Float[Array, "n k t d"] | Iterable[Float[Array, "c k t d"]],
+    gt: Float[Array, "n t d"],
+    futures: Float[Array, "r t d"],
+    idx: Int[Array, "n m"],
+    mask: Bool[Array, "n m"],
+    *,
+    chunk_size: int = 32,
+) -> dict[str, np.ndarray]:
+    """Returns every per-window metric of PROTOCOL sec. 2 as `(N,)` numpy arrays, keyed as `METRIC_NAMES`.
+
+    `pred` is either the whole `(N, K, t_pred, D)` array or an iterable of `(n_c, K, t_pred, D)`
+    chunks whose concatenation along axis 0 is that array (e.g. a generator that samples the model
+    chunk by chunk), so the full prediction tensor never needs to exist. Chunks are padded to
+    `chunk_size` windows so the jitted kernel compiles once.
+    """
+    fn = "window_metrics"
+    gt = np.asarray(_check(fn, "gt", gt, 3), np.float32)
+    futures = jnp.asarray(_check(fn, "futures", futures, 3), jnp.float32)
+    idx = np.asarray(_check(fn, "idx", idx, 2, finite=False), np.int32)
+    mask = np.asarray(_check(fn, "mask", mask, 2, finite=False), bool)
+    n = gt.shape[0]
+    _check_same(fn, "number of windows", "gt", n, "idx", idx.shape[0])
+    _check_same(fn, "shape", "idx", idx.shape, "mask", mask.shape)
+    _check_same(fn, "t_pred", "gt", gt.shape[1], "futures", futures.shape[1])
+    _check_same(fn, "D", "gt", gt.shape[2], "futures", futures.shape[2])
+    if mask.any() and (idx[mask].min() < 0 or idx[mask].max() >= futures.shape[0]):
+        raise ValueError(f"{fn}: `idx` has entries outside [0, {futures.shape[0]}) where `mask` is True")
+    out = {k: np.empty((n,), np.float32) for k in METRIC_NAMES}
+    start, k_seen = 0, None
+    for chunk in _pred_chunks(pred, chunk_size):
+        c = chunk.shape[0]
+        if start + c > n:
+            raise ValueError(f"{fn}: `pred` has more windows than `gt` ({n})")
+        if k_seen is None:
+            k_seen = chunk.shape[1]
+        _check_same(fn, "K", "pred chunk", chunk.shape[1], "first pred chunk", k_seen)
+        _check_same(fn, "t_pred", "pred", chunk.shape[2], "gt", gt.shape[1])
+        _check_same(fn, "D", "pred", chunk.shape[3], "gt", gt.shape[2])
+        if not np.all(np.isfinite(np.asarray(chunk))):
+            raise ValueError(f"{fn}: `pred` contains NaN or inf in windows [{start}, {start + c})")
+        sl = slice(start, start + c)
+        pad = chunk_size - c
+        args = [np.asarray(chunk, np.float32), gt[sl], idx[sl], mask[sl]]
+        if pad:
+            args = [np.concatenate([a, np.zeros((pad,) + a.shape[1:], a.dtype)]) for a in args]
+        p, g, i, m = args
+        res = _chunk_metrics(jnp.asarray(p), jnp.asarray(g), futures, jnp.asarray(i), jnp.asarray(m))
+        for key in METRIC_NAMES:
+            out[key][sl] = np.asarray(res[key])[:c]
+        start += c
+    if start != n:
+        raise ValueError(f"{fn}: `pred` has {start} windows but `gt` has {n}")
+    return out
+
+
+def evaluate_windows(
+    pred: Float[Array, "n k t d"] | Iterable[Float[Array, "c k t d"]],
+    gt: Float[Array, "n t d"],
+    mm: Float[Array, "n d"] | MMSets,
+    *,
+    thr: float | None = None,
+    reference_last_poses: Float[Array, "r d"] | None = None,
+    reference_futures: Float[Array, "r t d"] | None = None,
+    mm_deviation: MMDeviation = None,
+    chunk_size: int = 32,
+) -> dict[str, float]:
+    """Returns APD, ADE, FDE, MMADE, MMFDE, ADE-m, FDE-m averaged over windows, plus MM statistics (PROTOCOL sec. 2).
+
+    `mm` is either the `(N, D)` flattened last observed poses (then `thr` is required and the MM
+    sets are built with `multimodal_gt`) or precomputed `MMSets`. MM futures are the test ground
+    truth `gt` unless `reference_futures` is given (with `reference_last_poses` when `mm` is poses),
+    e.g. training windows for MotionMap comparisons. `pred` may be an iterable of window chunks;
+    see `window_metrics`.
+
+    `mm_deviation` reproduces published code (see `reduce_mm`); with `"divsamp"` a window's own
+    future is removed from its set before MMADE/MMFDE are computed. Non-MM metrics are unaffected.
+
+    Extra keys: `n_windows`; `MM_mean`, `MM_min`, `MM_max` (MM set sizes as built, i.e. including
+    the window itself in test-window mode); `MM_only_self_frac` (fraction of windows with no MM
+    future other than their own); `MM_n_averaged` (windows entering the MMADE/MMFDE average).
+    """
+    fn = "evaluate_windows"
+    if mm_deviation not in (None, "divsamp", "comusion"):
+        raise ValueError(f"{fn}: `mm_deviation` must be None, 'divsamp' or 'comusion', got {mm_deviation!r}")
+    gt = np.asarray(_check(fn, "gt", gt, 3), np.float32)
+    if isinstance(mm, MMSets):
+        if reference_last_poses is not None:
+            raise ValueError(f"{fn}: pass `reference_last_poses` only with last poses, not with `MMSets`")
+        sets = mm
+    else:
+        if thr is None:
+            raise ValueError(f"{fn}: `thr` is required when `mm` is the last observed poses")
+        if reference_last_poses is not None and reference_futures is None:
+            raise ValueError(f"{fn}: `reference_last_poses` needs `reference_futures`")
+        sets = multimodal_gt(mm, thr, reference_last_poses=reference_last_poses)
+    mask = np.asarray(_check(fn, "mm.mask", sets.mask, 2, finite=False), bool)
+    _check_same(fn, "number of windows", "mm", mask.shape[0], "gt", gt.shape[0])
+    _check_same(fn, "shape", "mm.idx", np.shape(sets.idx), "mm.mask", mask.shape)
+    if reference_futures is None:
+        futures = gt
+        window = np.arange(gt.shape[0])[:, None]
+        is_self = np.asarray(sets.idx) == window
+    else:
+        futures = _check(fn, "reference_futures", reference_futures, 3)
+        if reference_last_poses is not None:
+            n_ref = np.shape(reference_last_poses)[0]
+            _check_same(fn, "number of windows", "reference_futures", futures.shape[0], "reference_last_poses", n_ref)
+        is_self = np.zeros(mask.shape, bool)
+    n_members = mask.sum(axis=1)
+    n_others = (mask & ~is_self).sum(axis=1)
+    used = mask & ~is_self if mm_deviation == "divsamp" else mask
+
+    per = window_metrics(pred, gt, futures, sets.idx, used, chunk_size=chunk_size)
+    out = {k: float(np.mean(per[k], dtype=np.float64)) for k in METRIC_NAMES if not k.startswith("MM")}
+    out["MMADE"], n_avg = reduce_mm(per["MMADE"], used.sum(axis=1), n_others, mm_deviation)
+    out["MMFDE"], _ = reduce_mm(per["MMFDE"], used.sum(axis=1), n_others, mm_deviation)
+    out.update(
+        n_windows=float(gt.shape[0]),
+        MM_mean=float(n_members.mean()),
+        MM_min=float(n_members.min()),
+        MM_max=float(n_members.max()),
+        MM_only_self_frac=float(np.mean(n_others == 0)),
+        MM_n_averaged=float(n_avg),
+    )
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Synthetic data with known modes.
+
+
+def _recall_one(pred, modes, probs, mask, thr):
+    d = jnp.mean(jnp.sqrt(jnp.sum((pred[:, None] - modes[None]) ** 2, axis=-1)), axis=-1)
+    reached = jnp.any(d < thr, axis=0) & mask
+    recall = jnp.sum(reached) / jnp.sum(mask)
+    weighted = jnp.sum(jnp.where(reached, probs, 0.0)) / jnp.sum(jnp.where(mask, probs, 0.0))
+    return recall, weighted
+
+
+@partial(jax.jit, static_argnames="batch_size")
+def _mode_recall(pred, modes, probs, mask, thr, batch_size):
+    return lax.map(lambda a: _recall_one(*a, thr), (pred, modes, probs, mask), batch_size=batch_size)
+
+
+def mode_recall(
+    pred: Float[Array, "n k t d"],
+    modes: Float[Array, "n p t d"],
+    mode_probs: Float[Array, "n p"] | Float[Array, " p"],
+    mode_mask: Bool[Array, "n p"] | None,
+    thr: float,
+    *,
+    batch_size: int = 16,
+) -> tuple[Float[Array, " n"], Float[Array, " n"]]:
+    """Returns per-window `(recall, weighted_recall)` of known future modes (synthetic data; PROTOCOL sec. 2 ADE term).
+
+    A valid mode `p` is reached when some sample's ADE term `(1/T) sum_t ||Yhat_{k,t} - mode_{p,t}||`
+    is below `thr`; `recall` is the fraction of valid modes reached, `weighted_recall` the
+    probability mass of reached modes over that of valid modes. `thr` (metres) is deliberately
+    required: the right value depends on how far apart the dataset's modes are, and it must be
+    reported next to the numbers. A window with no valid mode gives NaN.
+
+    `mode_probs` may be `(P,)` when every window shares the prior (as `data.synthetic.TestModes`
+    does), and `mode_mask=None` means every mode is valid.
+    """
+    fn = "mode_recall"
+    if thr is None or (not _is_traced(thr) and (not np.isfinite(thr) or thr <= 0)):
+        raise ValueError(f"{fn}: `thr` must be a positive finite distance, got {thr}")
+    pred = _check(fn, "pred", pred, 4)
+    modes = _check(fn, "modes", modes, 4)
+    n, p = modes.shape[:2]
+    if getattr(mode_probs, "ndim", np.ndim(mode_probs)) == 1:
+        mode_probs = jnp.broadcast_to(jnp.asarray(mode_probs), (n,) + tuple(np.shape(mode_probs)))
+    mode_probs = _check(fn, "mode_probs", mode_probs, 2)
+    mode_mask = jnp.ones((n, p), bool) if mode_mask is None else _check(fn, "mode_mask", mode_mask, 2, finite=False)
+    _check_same(fn, "number of windows", "pred", pred.shape[0], "modes", modes.shape[0])
+    _check_same(fn, "t_pred", "pred", pred.shape[2], "modes", modes.shape[2])
+    _check_same(fn, "D", "pred", pred.shape[3], "modes", modes.shape[3])
+    _check_same(fn, "shape", "mode_probs", mode_probs.shape, "modes[:, :, 0, 0]", modes.shape[:2])
+    _check_same(fn, "shape", "mode_mask", mode_mask.shape, "modes[:, :, 0, 0]", modes.shape[:2])
+    return _mode_recall(
+        jnp.asarray(pred, jnp.float32),
+        jnp.asarray(modes, jnp.float32),
+        jnp.asarray(mode_probs, jnp.float32),
+        jnp.asarray(mode_mask, bool),
+        jnp.float32(thr),
+        batch_size,
+    )
