@@ -26,7 +26,7 @@ from jaxmotion.data.windows import TrainSampler, sequence_frames, test_windows
 Predictor = Callable[[jax.Array, jax.Array], jax.Array]  # (x (b, t_his, D), key) -> (b, K, t_pred, D)
 
 # Method name -> module providing train / restore / predictors (see jaxmotion/train/dlow.py).
-METHODS = {"dlow": "jaxmotion.train.dlow"}
+METHODS = {"dlow": "jaxmotion.train.dlow", "divsamp": "jaxmotion.train.divsamp", "mojo": "jaxmotion.train.mojo"}
 
 
 def get_method(name: str):
@@ -106,10 +106,12 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
     x, y = prep.x, prep.y
     mm_sets = metrics.multimodal_gt(x[:, -1], ds.mm_threshold)
     records = []
+    # Optional method hook `extra_metrics(ds, pred, gt) -> {name: (n,) per-window array}`.
+    extra_fn = getattr(get_method(cfg.method), "extra_metrics", None)
     for k in cfg.eval_k:
         for name, fn in get_method(cfg.method).predictors(cfg, ds, params, k).items():
             t0 = time.perf_counter()
-            recalls = []
+            recalls, extras = [], []
 
             def chunks():
                 for i, p in enumerate(predict_chunks(fn, x, jax.random.key(cfg.seed + 7), cfg.eval_batch)):
@@ -120,9 +122,12 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
                             p, modes.modes[sl], np.broadcast_to(modes.probs, (n, P)), np.ones((n, P), bool), cfg.mode_threshold
                         )
                         recalls.append((np.asarray(r), np.asarray(w)))
+                    if extra_fn is not None:
+                        extras.append(extra_fn(ds, p, y[i * cfg.eval_batch : i * cfg.eval_batch + p.shape[0]]))
                     yield p
 
             m = metrics.evaluate_windows(chunks(), y, mm_sets, mm_deviation=cfg.mm_deviation)
+            m.pop("n_windows")  # a top-level field of the record (PROTOCOL sec. 5)
             if modes is not None:
                 sel = modes.boundary <= cfg.mode_max_boundary
                 r = np.concatenate([a for a, _ in recalls])[sel]
@@ -131,6 +136,8 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
                 m["mode_recall_weighted"] = float(w.mean())
                 m["mode_threshold"] = cfg.mode_threshold
                 m["mode_windows"] = int(sel.sum())
+            for key in extras[0] if extras else ():
+                m[key] = float(np.nanmean(np.concatenate([e[key] for e in extras])))
             wall = time.perf_counter() - t0
             rec = {
                 "dataset": data_label or ds.name,
@@ -160,14 +167,21 @@ def format_record(rec: dict) -> str:
 
 
 def report(cfg: Config, prep: Prepared, params, workdir: Path, method: str | None = None) -> Path:
-    """Writes `workdir/samples.png` for the test window with the largest multimodal ground-truth set."""
+    """Writes `workdir/samples.png` for the test window whose ground truth is most multimodal.
+
+    That is the window whose multimodal ground-truth futures (PROTOCOL sec. 2) end furthest apart
+    on average: where a good stochastic predictor should show several distinct futures.
+    """
     from jaxmotion import metrics
     from jaxmotion.viz import plot_futures
 
     ds = prep.dataset
     k = max(cfg.eval_k)
-    sets = metrics.multimodal_gt(prep.x[:, -1], ds.mm_threshold)
-    i = int(np.argmax(np.asarray(sets.mask).sum(axis=1)))
+    idx, mask = metrics.multimodal_gt(prep.x[:, -1], ds.mm_threshold)
+    idx, mask = np.asarray(idx), np.asarray(mask)
+    ends = prep.y[:, -1]
+    spread = (np.linalg.norm(ends[idx] - ends[:, None], axis=-1) * mask).sum(1) / mask.sum(1)
+    i = int(np.argmax(spread))
     method = method or cfg.method
     fn = get_method(cfg.method).predictors(cfg, ds, params, k)[method]
     preds = np.asarray(fn(jnp.asarray(prep.x[i : i + 1]), jax.random.key(cfg.seed + 11)))[0]

@@ -44,45 +44,61 @@ def plot_futures(
     title: str = "",
     n_rows: int = 4,
     n_frames: int = 6,
+    n_end: int = 12,
 ) -> Path:
-    """Writes and returns a PNG of one window: stacked end poses of all K futures, and a few futures over time.
+    """Writes and returns a PNG of one window: end poses of the K futures, and a few futures over time.
 
-    `x` `(t_his, D)`, `preds` `(K, t_pred, D)`, `gt` `(t_pred, D)` frame vectors. Top row: the last
-    observed pose, then the K predicted end poses overlaid (front and side view) beside the true
-    end pose. Below: the ground truth and `n_rows` samples as strips of `n_frames` poses over time.
+    `x` `(t_his, D)`, `preds` `(K, t_pred, D)`, `gt` `(t_pred, D)` frame vectors. Row 1: the true
+    end pose then the end poses of the first `n_end` samples side by side. Row 2: all K end poses
+    overlaid in front and side view, and their pairwise distances. Below: the ground truth and
+    `n_rows` samples as strips of `n_frames` poses over time, after the last observed pose (grey).
     """
     xj, pj, gj = frames_to_joints(x), frames_to_joints(preds), frames_to_joints(gt)
     up, across, depth = view_axes(np.concatenate([xj, gj]))
     k, t_pred = pj.shape[:2]
-    colors = plt.cm.viridis(np.linspace(0, 1, k))
-    fig = plt.figure(figsize=(14, 3.2 * (n_rows + 2)))
-    gs = fig.add_gridspec(n_rows + 2, 3)
+    colors = plt.cm.viridis(np.linspace(0, 0.9, k))
+    step = 1.3 * max(np.ptp(xj[..., across]), np.ptp(xj[..., depth])) + 0.5
+    fig = plt.figure(figsize=(15, 2.6 * (n_rows + 3)))
+    gs = fig.add_gridspec(n_rows + 3, 3, height_ratios=[1.0, 1.4] + [1.0] * (n_rows + 1))
+
+    ax = fig.add_subplot(gs[0, :])
+    _draw(ax, gj[-1], parents, across, up, color="k", lw=2)
+    ax.text(0, np.max(gj[-1, :, up]) + 0.12, "truth", ha="center", fontsize=8)
+    for i in range(min(n_end, k)):
+        _draw(ax, pj[i, -1], parents, across, up, dx=(i + 1.3) * step, color=colors[i], lw=2)
+        ax.text((i + 1.3) * step, np.max(gj[-1, :, up]) + 0.12, f"sample {i}", ha="center", fontsize=8)
+    ax.set_title(f"end poses (frame +{t_pred}) of the true future and of {min(n_end, k)} of the {k} samples", fontsize=9)
+    ax.set_aspect("equal")
+    ax.axis("off")
+
     for col, (h, name) in enumerate([(across, "front"), (depth, "side")]):
-        ax = fig.add_subplot(gs[0, col])
+        ax = fig.add_subplot(gs[1, col])
         _draw(ax, xj[-1], parents, h, up, color="0.6", lw=3)
         for i in range(k):
-            _draw(ax, pj[i, -1], parents, h, up, color=colors[i], lw=1, alpha=0.6)
+            _draw(ax, pj[i, -1], parents, h, up, color=colors[i], lw=1, alpha=0.5)
         _draw(ax, gj[-1], parents, h, up, color="k", lw=2, ls="--")
-        ax.set_title(f"{k} predicted end poses ({name} view); grey: last observed, dashed: truth", fontsize=9)
+        ax.set_title(f"all {k} end poses ({name}); grey: last observed, dashed: truth", fontsize=9)
         ax.set_aspect("equal")
         ax.axis("off")
-    ax = fig.add_subplot(gs[0, 2])
-    end = pj[:, -1].reshape(k, -1)
-    d = np.linalg.norm(end[:, None] - end[None], axis=-1)
-    ax.imshow(d, cmap="magma")
-    ax.set_title("pairwise end-pose distance (m) between the K futures", fontsize=9)
+    ax = fig.add_subplot(gs[1, 2])
+    flat = preds.reshape(k, -1)
+    d = np.linalg.norm(flat[:, None] - flat[None], axis=-1)
+    im = ax.imshow(d, cmap="magma")
+    fig.colorbar(im, ax=ax, fraction=0.046)
+    ax.set_title("distance between samples (APD terms, m)", fontsize=9)
     ax.set_xticks([])
     ax.set_yticks([])
+
     times = np.linspace(0, t_pred - 1, n_frames).round().astype(int)
-    step = 1.2 * np.ptp(xj[..., across]) + 0.6
     strips = [("truth", gj, "k")] + [(f"sample {i}", pj[i], colors[i]) for i in range(min(n_rows, k))]
     for r, (name, seq, color) in enumerate(strips):
-        ax = fig.add_subplot(gs[r + 1, :])
+        ax = fig.add_subplot(gs[r + 2, :])
         _draw(ax, xj[-1], parents, across, up, dx=-step, color="0.6", lw=2)
         for c, t in enumerate(times):
             _draw(ax, seq[t], parents, across, up, dx=c * step, color=color, lw=2)
             if r == 0:
-                ax.text(c * step, np.max(gj[..., up]) + 0.15, f"+{t + 1} fr", ha="center", fontsize=8)
+                ax.text(c * step, np.max(gj[..., up]) + 0.12, f"+{t + 1} fr", ha="center", fontsize=8)
+        ax.text(-step, np.max(gj[..., up]) + 0.12, "last observed", ha="center", fontsize=8)
         ax.set_ylabel(name)
         ax.set_aspect("equal")
         ax.set_xticks([])
