@@ -285,6 +285,17 @@ def test_mode_recall():
     np.testing.assert_allclose(weighted, [0.2, 0.8], atol=1e-6)
 
 
+def test_mode_recall_counts_a_sample_for_its_nearest_mode_only():
+    modes = np.array([0.0, 1.0])[None, :, None, None] * np.ones((1, 2, 3, 1))
+    one = np.full((1, 1, 3, 1), 0.4)  # within thr of both modes, nearer to mode 0
+    recall, weighted = M.mode_recall(one, modes, np.array([0.7, 0.3]), None, 1.0)
+    np.testing.assert_allclose(recall, [0.5])
+    np.testing.assert_allclose(weighted, [0.7])
+    two = np.concatenate([one, np.full((1, 1, 3, 1), 0.9)], axis=1)
+    recall, _ = M.mode_recall(two, modes, np.array([0.7, 0.3]), None, 1.0)
+    np.testing.assert_allclose(recall, [1.0])
+
+
 # ---------------------------------------------------------------------------------------------
 # Boundary validation.
 
