@@ -23,7 +23,8 @@ def kld_affine(a: Float[Array, "... z"], b: Float[Array, "... z"]) -> Float[Arra
 
 def robust_kld(kld: Float[Array, "..."]) -> Float[Array, "..."]:
     """Returns Psi(s) = sqrt(1 + s^2) - 1, MOJO's robust KLD (Eq. (1) of MOJO)."""
-    return jnp.sqrt(1.0 + kld**2) - 1.0
+    # s^2 / (sqrt(1 + s^2) + 1) is the same number without float32 cancellation near s = 0.
+    return kld**2 / (jnp.sqrt(1.0 + kld**2) + 1.0)
 
 
 def pairwise_sq_dists(y: Float[Array, "k n"]) -> Float[Array, "k k"]:
@@ -44,3 +45,17 @@ def dlow_diversity(y: Float[Array, "k ..."], d_scale: float) -> Float[Array, ""]
 def min_of_k_sq_error(y_k: Float[Array, "k t d"], y: Float[Array, "t d"]) -> Float[Array, ""]:
     """Returns min_k sum_{t,d} (y_k - y)^2: DLow's reconstruction term for one window."""
     return jnp.min(jnp.sum((y_k - y[None]) ** 2, axis=(-2, -1)))
+
+
+def hinge_diversity(y: Float[Array, "k ..."], eta: float) -> Float[Array, ""]:
+    """Returns mean_{i != j} max(0, eta - ||y_i - y_j||) over the K samples (DivSamp Eq. (13)).
+
+    Unlike DLow's exp(-D^2) energy, pairs farther apart than `eta` cost nothing, so the loss only
+    pushes apart samples that are still too close. Distances are over the flattened samples.
+    """
+    k = y.shape[0]
+    d2 = pairwise_sq_dists(y.reshape(k, -1))
+    iu = jnp.triu_indices(k, 1)
+    # The floor keeps the gradient of sqrt finite for (near-)identical samples.
+    d = jnp.sqrt(jnp.maximum(d2[iu], 1e-12))
+    return jnp.mean(jnp.maximum(eta - d, 0.0))

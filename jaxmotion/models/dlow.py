@@ -15,7 +15,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from jaxmotion.losses import dlow_diversity, kld_affine, kld_normal, min_of_k_sq_error
-from jaxmotion.nn.gru import GRU, GRUCell
+from jaxmotion.nn.gru import GRU, GRUCell, gru_update
 from jaxmotion.nn.mlp import MLP
 
 
@@ -57,18 +57,30 @@ class DLowCVAE(nn.Module):
         return (h, y), y
 
     def decode(self, x: Float[Array, "b t_his d"], z: Float[Array, "b z"], h_x=None) -> Float[Array, "b t_pred d"]:
-        """Returns the decoded future `(batch, horizon, dim)` for latents `z` (pass `h_x` to reuse it)."""
+        """Returns the decoded future `(batch, horizon, dim)` for latents `z` (pass `h_x` to reuse it).
+
+        Computes exactly `decode_step` `horizon` times, with the conditioning's share of the GRU
+        input gates, `[h_x, z] @ W_ih[:n_cond]`, computed once instead of at every step: it does
+        not change over time, and it is 256 of the 316 input columns (a third of the decoder's FLOPs).
+        """
         if h_x is None:
             h_x = self.encode_x(x)
         cond = jnp.concatenate([h_x, z], axis=-1)
         carry = (self.drnn_mlp(h_x), x[:, -1])
-        scan = nn.scan(
-            lambda mdl, c, _: mdl.decode_step(c, cond),
-            variable_broadcast="params",
-            split_rngs={"params": False},
-            length=self.horizon,
-            out_axes=1,
-        )
+        if self.is_initializing():
+            self.decode_step(carry, cond)  # creates the decoder's parameters
+        w = self.d_cell.variables["params"]
+        n_cond = cond.shape[-1]
+        gi_cond = cond @ w["weight_ih"][:n_cond] + w["bias_ih"]
+        w_y = w["weight_ih"][n_cond:]
+
+        def step(mdl, c, _):
+            h, y_prev = c
+            h = gru_update(gi_cond + y_prev @ w_y, h @ w["weight_hh"] + w["bias_hh"], h)
+            y = mdl.d_out(mdl.d_mlp(h))
+            return (h, y), y
+
+        scan = nn.scan(step, variable_broadcast="params", split_rngs={"params": False}, length=self.horizon, out_axes=1)
         _, ys = scan(self, carry, None)
         return ys
 

@@ -13,6 +13,23 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 
+def gru_update(
+    gi: Float[Array, "b 3h"], gh: Float[Array, "b 3h"], h: Float[Array, "b h"]
+) -> Float[Array, "b h"]:
+    """Returns `h'` from the input gates `gi = W_i x + b_i` and hidden gates `gh = W_h h + b_h` (PyTorch GRUCell).
+
+    Split from the matrix products so a caller can compute `gi` outside a time loop: for a whole
+    input sequence at once (`GRU`), or once for inputs that do not change over time (a decoder's
+    conditioning vector).
+    """
+    i_r, i_z, i_n = jnp.split(gi, 3, axis=-1)
+    h_r, h_z, h_n = jnp.split(gh, 3, axis=-1)
+    r = jax.nn.sigmoid(i_r + h_r)
+    z = jax.nn.sigmoid(i_z + h_z)
+    n = jnp.tanh(i_n + r * h_n)
+    return (1.0 - z) * n + z * h
+
+
 class GRUCell(nn.Module):
     """Returns the next hidden state `h'` (PyTorch `nn.GRUCell` equations).
 
@@ -31,18 +48,11 @@ class GRUCell(nn.Module):
         w_hh = self.param("weight_hh", init((f, 3 * f)))
         b_ih = self.param("bias_ih", init((3 * f,)))
         b_hh = self.param("bias_hh", init((3 * f,)))
-        gi = x @ w_ih + b_ih
-        gh = h @ w_hh + b_hh
-        i_r, i_z, i_n = jnp.split(gi, 3, axis=-1)
-        h_r, h_z, h_n = jnp.split(gh, 3, axis=-1)
-        r = jax.nn.sigmoid(i_r + h_r)
-        z = jax.nn.sigmoid(i_z + h_z)
-        n = jnp.tanh(i_n + r * h_n)
-        return (1.0 - z) * n + z * h
+        return gru_update(x @ w_ih + b_ih, h @ w_hh + b_hh, h)
 
 
 class GRU(nn.Module):
-    """Returns all hidden states `(batch, time, features)` of a GRU run by `lax.scan` over time."""
+    """Returns all hidden states `(batch, time, features)` of a GRU run by `lax.scan` over time (parameters `cell/...`)."""
 
     features: int
 
@@ -51,10 +61,16 @@ class GRU(nn.Module):
         if h0 is None:
             h0 = jnp.zeros(x.shape[:-2] + (self.features,), x.dtype)
 
-        def step(cell, h, x_t):
-            h = cell(h, x_t)
+        cell = GRUCell(self.features, name="cell")
+        cell(h0, x[:, 0])  # creates the parameters at init; XLA drops the unused result
+        p = cell.variables["params"]
+        # The input half of every gate does not depend on h: one (b * t, i) x (i, 3h) product for
+        # all steps (as cuDNN / oneDNN GRUs do) leaves only h @ W_hh inside the sequential loop.
+        gi = jnp.swapaxes(x @ p["weight_ih"] + p["bias_ih"], 0, 1)
+
+        def step(h, gi_t):
+            h = gru_update(gi_t, h @ p["weight_hh"] + p["bias_hh"], h)
             return h, h
 
-        scan = nn.scan(step, variable_broadcast="params", split_rngs={"params": False}, in_axes=1, out_axes=1)
-        _, hs = scan(GRUCell(self.features, name="cell"), h0, x)
-        return hs
+        _, hs = jax.lax.scan(step, h0, gi)
+        return jnp.swapaxes(hs, 0, 1)

@@ -1,0 +1,182 @@
+"""What the benchmark measures and how: the settings, the list of cases, timing and peak memory.
+
+Shared by the parent (`run.py`) and the two workers (`jax_bench.py`, `torch_ref/bench.py`), so both
+frameworks run exactly the same cases with the same sizes, warm-up and repeat counts.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import gc
+import os
+import platform
+import resource
+import statistics
+import time
+from typing import Callable
+
+MODELS = ("dlow", "mojo", "divsamp")
+
+
+@dataclasses.dataclass
+class Settings:
+    """Sizes (Bandai-Namco-2's protocol: D = 60, 15 -> 60 frames at 30 fps) and repeat counts."""
+
+    dim: int = 60
+    t_his: int = 15
+    t_pred: int = 60
+    train_batch: int = 64  # first stage (the CVAE), windows per step
+    sampler_batch: int = 16  # second stage (sampler on the frozen decoder): the shared budget's batch 16 x K 50
+    k: int = 50
+    sample_batches: tuple[int, ...] = (1, 64)
+    k_sweep: tuple[int, ...] = (1, 10, 50, 100, 500, 1000)
+    t_pred_sweep: tuple[int, ...] = (15, 30, 60, 120)
+    warmup: int = 2
+    repeats: int = 7
+    models: tuple[str, ...] = MODELS
+    seed: int = 0
+
+    @classmethod
+    def quick(cls, **kw) -> "Settings":
+        """Returns tiny settings for a smoke test (seconds, not minutes; numbers not meaningful)."""
+        base = dict(train_batch=8, sampler_batch=2, k=5, sample_batches=(1, 4), k_sweep=(1, 20), t_pred_sweep=(10, 30),
+                    t_pred=30, warmup=1, repeats=2)
+        base.update(kw)
+        return cls(**base)
+
+
+@dataclasses.dataclass(frozen=True)
+class Case:
+    """One measurement: `kind` is train_cvae | train_sampler | sample | sample_prior."""
+
+    model: str
+    kind: str
+    batch: int
+    k: int = 0
+    t_pred: int = 0
+
+    @property
+    def name(self) -> str:
+        parts = [self.model, self.kind, f"b{self.batch}"]
+        if self.k:
+            parts.append(f"k{self.k}")
+        if self.t_pred:
+            parts.append(f"t{self.t_pred}")
+        return "/".join(parts)
+
+
+def plan(s: Settings) -> list[Case]:
+    """Returns every case of a run, in the order both workers run them.
+
+    The sweeps decode latents drawn from N(0, I) with the CVAE decoder (the part whose cost grows
+    with K and t_pred; DLow's and MOJO's Q networks are trained for one K).
+    """
+    cases = []
+    for m in s.models:
+        cases.append(Case(m, "train_cvae", s.train_batch, t_pred=s.t_pred))
+        cases.append(Case(m, "train_sampler", s.sampler_batch, k=s.k, t_pred=s.t_pred))
+        cases += [Case(m, "sample", b, k=s.k, t_pred=s.t_pred) for b in s.sample_batches]
+        cases += [Case(m, "sample_prior", 1, k=k, t_pred=s.t_pred) for k in s.k_sweep]
+        cases += [Case(m, "sample_prior", 1, k=s.k, t_pred=t) for t in s.t_pred_sweep if t != s.t_pred]
+    return cases
+
+
+def windows_per_step(case: Case) -> int:
+    return case.batch
+
+
+# ---------------------------------------------------------------------------------------------
+# Timing and memory.
+
+
+def summarise(times: list[float]) -> dict:
+    """Returns the median and spread (quartiles, min, max) of `times` in seconds."""
+    q = statistics.quantiles(times, n=4, method="inclusive") if len(times) > 1 else [times[0]] * 3
+    return {"median_s": statistics.median(times), "p25_s": q[0], "p75_s": q[2], "min_s": min(times),
+            "max_s": max(times), "n": len(times)}
+
+
+def measure(run: Callable[[], object], warmup: int, repeats: int) -> dict:
+    """Returns `summarise` of `repeats` wall-clock timings of `run()` after `warmup` untimed calls.
+
+    `run` must return only when the work is done (JAX: `block_until_ready`).
+    """
+    for _ in range(warmup):
+        run()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        run()
+        times.append(time.perf_counter() - t0)
+    return summarise(times)
+
+
+def _status_kb(field: str) -> float | None:
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith(field + ":"):
+                    return float(line.split()[1])
+    except OSError:
+        pass
+    return None
+
+
+class PeakRSS:
+    """The process's resident-set high-water mark, reset per case on Linux.
+
+    Writing "5" to /proc/self/clear_refs resets VmHWM to the current RSS (Linux >= 4.0), so the
+    peak read after a case is the peak during it (its set-up included). Elsewhere the process's
+    lifetime maximum (`ru_maxrss`) is reported instead and `resettable` is False.
+    """
+
+    def __init__(self):
+        self.resettable = False
+        try:
+            with open("/proc/self/clear_refs", "w") as f:
+                f.write("5")
+            self.resettable = _status_kb("VmHWM") is not None
+        except OSError:
+            pass
+
+    def reset(self) -> float:
+        """Returns the current RSS in MB after resetting the high-water mark."""
+        gc.collect()
+        if self.resettable:
+            with open("/proc/self/clear_refs", "w") as f:
+                f.write("5")
+        return self.current_mb()
+
+    def current_mb(self) -> float:
+        kb = _status_kb("VmRSS")
+        return kb / 1024 if kb is not None else float("nan")
+
+    def peak_mb(self) -> float:
+        kb = _status_kb("VmHWM") if self.resettable else None
+        if kb is None:
+            kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        return kb / 1024
+
+
+def machine() -> dict:
+    """Returns the CPU model, core count, memory, OS and Python of this machine."""
+    cpu = platform.processor() or "unknown"
+    try:
+        with open("/proc/cpuinfo") as f:
+            cpu = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    mem = None
+    try:
+        with open("/proc/meminfo") as f:
+            mem = round(int(next(line.split()[1] for line in f if line.startswith("MemTotal"))) / 2**20, 1)
+    except (OSError, StopIteration):
+        pass
+    return {"cpu": cpu, "logical_cpus": os.cpu_count(), "memory_gib": mem, "os": platform.platform(),
+            "python": platform.python_version()}
+
+
+def parents_for(dim: int) -> tuple[int, ...]:
+    """Returns a kinematic tree of `dim / 3 + 1` joints (root first): five chains from the root, for bone-length losses."""
+    j = dim // 3 + 1
+    return tuple(-1 if i == 0 else (0 if i % 4 == 1 else i - 1) for i in range(j))

@@ -1,0 +1,174 @@
+"""The jaxmotion worker of the benchmark: runs every case of `harness.plan` and writes the records as JSON.
+
+Run by `benchmarks/run.py` in its own process (`python -m benchmarks.jax_bench --settings JSON --out FILE`).
+Every function is jitted once per case; tracing + XLA compilation is timed separately from the runs
+(`lower(...).compile()`), and the timed runs call the compiled executable. Training steps donate
+their state, as `jaxmotion.train.loop.fit` does.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import functools
+import importlib.metadata
+import json
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from benchmarks.harness import Case, PeakRSS, Settings, measure, parents_for, plan
+from jaxmotion.models import divsamp, dlow, mojo
+from jaxmotion.train.divsamp import bn_optimizer, make_bn_train_step
+from jaxmotion.train.loop import create_state, make_train_step
+
+
+def _compile(fn, *args, donate=()):
+    """Returns `(compiled, trace_s, compile_s)` for `jax.jit(fn)` at these arguments."""
+    t0 = time.perf_counter()
+    lowered = jax.jit(fn, donate_argnums=donate).lower(*args)
+    t1 = time.perf_counter()
+    compiled = lowered.compile()
+    return compiled, t1 - t0, time.perf_counter() - t1
+
+
+def _train_runner(step, state, batch):
+    compiled, tr, co = _compile(step, state, batch, jax.random.key(0), donate=(0,))
+    box = [jax.tree.map(jnp.array, state)]  # the step donates its state: keep the caller's arrays
+    keys = [jax.random.key(i) for i in range(4)]
+    i = [0]
+
+    def run():
+        i[0] += 1
+        box[0], metrics = compiled(box[0], batch, keys[i[0] % 4])
+        jax.block_until_ready(metrics)
+
+    run.compiled = compiled
+    return run, tr, co
+
+
+def _sample_runner(fn, *args):
+    compiled, tr, co = _compile(fn, *args)
+
+    def run():
+        jax.block_until_ready(compiled(*args))
+
+    run.compiled = compiled
+    return run, tr, co
+
+
+class Builders:
+    """Builds the `run()` closure of each case for each model (parameters from each model's own init)."""
+
+    def __init__(self, s: Settings):
+        self.s = s
+        rng = np.random.default_rng(s.seed)
+        self.data = lambda b, t: jnp.asarray(rng.normal(size=(b, t, s.dim)).astype(np.float32))
+
+    # --- DLow ------------------------------------------------------------------------------------
+    def dlow(self, c: Case):
+        s = self.s
+        cvae = dlow.DLowCVAE(dim=s.dim, horizon=c.t_pred)
+        p = cvae.init(jax.random.key(0), self.data(1, s.t_his), self.data(1, c.t_pred), jax.random.key(1))
+        if c.kind == "train_cvae":
+            tx = optax.adam(1e-3)
+            loss = functools.partial(dlow.cvae_loss, cvae, t_his=s.t_his, beta=0.1, lambda_v=1000.0)
+            step = make_train_step(lambda q, _f, b, k: loss(q, b, k), tx)
+            return _train_runner(step, create_state(p, tx), self.data(c.batch, s.t_his + c.t_pred))
+        x = self.data(c.batch, s.t_his)
+        if c.kind == "sample_prior":
+            return _sample_runner(lambda p, x, key: dlow.sample_prior(cvae, p, x, key, c.k), p, x, jax.random.key(2))
+        q = dlow.DLowQ(nk=c.k)
+        qp = q.init(jax.random.key(3), x[:1], jnp.zeros((1, cvae.nz)))
+        if c.kind == "sample":
+            return _sample_runner(lambda p, qp, x, key: dlow.sample_dlow(cvae, p, q, qp, x, key), p, qp, x, jax.random.key(2))
+        tx = optax.adam(1e-4)
+        loss = functools.partial(dlow.dlow_loss, q, cvae=cvae, t_his=s.t_his, d_scale=100.0, lambda_j=25.0,
+                                 lambda_recon=2.0, lambda_kl=1.0)
+        step = make_train_step(lambda qp, f, b, k: loss(qp, cvae_params=f, batch=b, key=k), tx)
+        return _train_runner(step, create_state(qp, tx, frozen=p), self.data(c.batch, s.t_his + c.t_pred))
+
+    # --- MOJO ------------------------------------------------------------------------------------
+    def mojo(self, c: Case):
+        s = self.s
+        cfg = mojo.MojoConfig()
+        model = mojo.cvae_model(cfg, s.dim, c.t_pred)
+        p = model.init(jax.random.key(0), self.data(1, s.t_his), self.data(1, c.t_pred), jax.random.key(1))
+        if c.kind == "train_cvae":
+            tx = optax.adam(cfg.lr)
+            loss = functools.partial(mojo.cvae_loss, model, t_his=s.t_his, cfg=cfg)
+            step = make_train_step(lambda q, _f, b, k: loss(q, b, k), tx)
+            return _train_runner(step, create_state(p, tx), self.data(c.batch, s.t_his + c.t_pred))
+        x = self.data(c.batch, s.t_his)
+        if c.kind == "sample_prior":
+            return _sample_runner(lambda p, x, key: mojo.sample_prior(model, p, x, key, c.k), p, x, jax.random.key(2))
+        q = mojo.q_model(cfg, c.t_pred, c.k)
+        qp = q.init(jax.random.key(3), x[:1], jnp.zeros((1, q.n_low, cfg.nz)))
+        if c.kind == "sample":
+            return _sample_runner(lambda p, qp, x, key: mojo.sample_mojo(model, p, q, qp, x, key), p, qp, x, jax.random.key(2))
+        tx = optax.adam(cfg.q_lr)
+        loss = functools.partial(mojo.q_loss, q, model=model, t_his=s.t_his, cfg=cfg)
+        step = make_train_step(lambda qp, f, b, k: loss(qp, cvae_params=f, batch=b, key=k), tx)
+        return _train_runner(step, create_state(qp, tx, frozen=p), self.data(c.batch, s.t_his + c.t_pred))
+
+    # --- DivSamp ---------------------------------------------------------------------------------
+    def divsamp(self, c: Case):
+        s = self.s
+        d = divsamp.DivSampConfig()
+        cvae = divsamp.cvae_from_config(d)
+        cx0 = jnp.zeros((2, s.dim // 3, 3 * d.n_dct))
+        v = dict(cvae.init(jax.random.key(0), cx0, cx0, jax.random.key(1), train=False))
+        if c.kind == "train_cvae":
+            tx = bn_optimizer(optax.chain(optax.clip_by_global_norm(d.cvae_grad_clip), optax.adam(d.cvae_lr)))
+            loss = functools.partial(divsamp.cvae_loss, cvae, t_his=s.t_his, parents=parents_for(s.dim), beta=d.beta,
+                                     lambda_v=d.lambda_v, lambda_his=d.lambda_his, lambda_limb=d.lambda_limb)
+            step = make_bn_train_step(lambda q, _f, b, k: loss(q, b, k), tx)
+            return _train_runner(step, create_state(v, tx), self.data(c.batch, s.t_his + c.t_pred))
+        x = self.data(c.batch, s.t_his)
+        if c.kind == "sample_prior":
+            fn = lambda v, x, key: divsamp.sample_prior(cvae, v, x, key, c.k, t_pred=c.t_pred)
+            return _sample_runner(fn, v, x, jax.random.key(2))
+        sampler = divsamp.sampler_from_config(d)
+        sv = dict(sampler.init(jax.random.key(3), cx0, jax.random.key(4), 2, train=False))
+        if c.kind == "sample":
+            fn = lambda v, sv, x, key: divsamp.sample_divsamp(cvae, v, sampler, sv, x, key, c.k, t_pred=c.t_pred)
+            return _sample_runner(fn, v, sv, x, jax.random.key(2))
+        tx = bn_optimizer(optax.adam(d.lr))
+        loss = functools.partial(divsamp.sampler_loss, sampler, cvae=cvae, t_his=s.t_his, k=c.k, lambda_kl=d.lambda_kl,
+                                 lambda_acc=d.lambda_acc, lambda_div=d.lambda_div, eta=d.eta)
+        step = make_bn_train_step(lambda q, f, b, k: loss(q, cvae_variables=f, batch=b, key=k), tx)
+        return _train_runner(step, create_state(sv, tx, frozen=v), self.data(c.batch, s.t_his + c.t_pred))
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--settings", required=True)
+    ap.add_argument("--out", required=True)
+    args = ap.parse_args()
+    s = Settings(**{k: tuple(v) if isinstance(v, list) else v for k, v in json.loads(args.settings).items()})
+    mem = PeakRSS()
+    builders = Builders(s)
+    records = []
+    for c in plan(s):
+        rss0 = mem.reset()
+        t0 = time.perf_counter()
+        run, trace_s, compile_s = getattr(builders, c.model)(c)
+        rec = dict(dataclasses.asdict(c), case=c.name, framework="jax", trace_s=trace_s, compile_s=compile_s)
+        rec.update(measure(run, s.warmup, s.repeats))
+        rec.update(rss_before_mb=rss0, peak_rss_mb=mem.peak_mb(), wall_s=time.perf_counter() - t0)
+        records.append(rec)
+        print(f"jax {c.name}: {rec['median_s'] * 1e3:.2f} ms (compile {compile_s:.1f} s)", flush=True)
+        del run
+        jax.clear_caches()
+    info = {"framework": "jax", "versions": {"jax": jax.__version__, "jaxlib": importlib.metadata.version("jaxlib"),
+                                             "flax": __import__("flax").__version__, "optax": optax.__version__},
+            "devices": [str(d) for d in jax.devices()], "peak_rss_resettable": mem.resettable}
+    with open(args.out, "w") as f:
+        json.dump({"info": info, "records": records}, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,235 @@
+"""jaxmotion vs PyTorch, the same networks side by side: one command, one process per framework.
+
+    python benchmarks/run.py            # full run (CPU here: about 8 minutes), updates benchmarks/README.md
+    python benchmarks/run.py --quick    # smoke test: tiny sizes, seconds per case, README untouched
+
+Workers run one after the other (never concurrently, so they do not share cores):
+`benchmarks/jax_bench.py` (jaxmotion), `benchmarks/torch_ref/bench.py` eager, and the same under
+`torch.compile` for the cases named by `--compile-cases`. Each writes its records; this script merges
+them into `benchmarks/results/<tag>.json` and renders the table of `benchmarks/README.md`, with
+ratios PyTorch time / jaxmotion time (> 1: jaxmotion is faster). On a shared machine, run it under
+the lock: `flock /tmp/jaxmotion-heavy.lock python benchmarks/run.py`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import datetime
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from benchmarks.harness import MODELS, Settings, machine  # noqa: E402
+
+TARGETS = {"train": 1.5, "sample_k50": 3.0}  # jaxmotion / PyTorch-eager speed-ups asked for (issue 6)
+BEGIN, END = "<!-- results:begin -->", "<!-- results:end -->"
+WORKERS = {
+    "jax": ["-m", "benchmarks.jax_bench"],
+    "torch_eager": ["-m", "benchmarks.torch_ref.bench"],
+    "torch_compile": ["-m", "benchmarks.torch_ref.bench", "--compile"],
+}
+
+
+def run_worker(name: str, settings: Settings, extra: list[str]) -> dict:
+    """Returns the worker's `{"info", "records"}` after running it in a fresh Python process."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / f"{name}.json"
+        cmd = [sys.executable, *WORKERS[name], "--settings", json.dumps(dataclasses.asdict(settings)), "--out", str(out), *extra]
+        t0 = time.perf_counter()
+        proc = subprocess.run(cmd, cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+        if proc.returncode != 0:
+            raise RuntimeError(f"benchmark worker {name!r} failed with exit code {proc.returncode}: {' '.join(cmd)}")
+        result = json.loads(out.read_text())
+    result["info"]["process_wall_s"] = time.perf_counter() - t0
+    return result
+
+
+def merge(results: dict[str, dict]) -> list[dict]:
+    """Returns one row per case with every framework's record and the ratios to jaxmotion."""
+    rows: dict[str, dict] = {}
+    for fw, res in results.items():
+        for r in res["records"]:
+            row = rows.setdefault(r["case"], {k: r[k] for k in ("case", "model", "kind", "batch", "k", "t_pred")})
+            row[fw] = {k: v for k, v in r.items() if k not in row}
+    for row in rows.values():
+        jax_t = row.get("jax", {}).get("median_s")
+        for fw in ("torch_eager", "torch_compile"):
+            t = row.get(fw, {}).get("median_s")
+            if jax_t and t:
+                row[f"ratio_{fw}"] = t / jax_t
+    return list(rows.values())
+
+
+# ---------------------------------------------------------------------------------------------
+# Markdown.
+
+
+def _ms(rec: dict | None) -> str:
+    if not rec or "median_s" not in rec:
+        return "failed" if rec and "error" in rec else "-"
+    return f"{rec['median_s'] * 1e3:.3g} ({rec['p25_s'] * 1e3:.3g}-{rec['p75_s'] * 1e3:.3g})"
+
+
+def _ratio(row: dict, fw: str) -> str:
+    r = row.get(f"ratio_{fw}")
+    return f"{r:.2f}x" if r else "-"
+
+
+def _wps(row: dict, fw: str) -> str:
+    rec = row.get(fw)
+    return f"{row['batch'] / rec['median_s']:.0f}" if rec and "median_s" in rec else "-"
+
+
+def _target(row: dict, s: Settings) -> str:
+    r = row.get("ratio_torch_eager")
+    if row["kind"].startswith("train"):
+        goal = TARGETS["train"]
+    elif row["kind"] == "sample" and row["k"] == s.k:
+        goal = TARGETS["sample_k50"]
+    else:
+        return ""
+    if r is None:
+        return "?"
+    return f"met (>= {goal}x)" if r >= goal else f"**missed** (< {goal}x)"
+
+
+def render(doc: dict) -> str:
+    """Returns the markdown section (tables, machine, versions, command) for one run."""
+    s = Settings(**{k: tuple(v) if isinstance(v, list) else v for k, v in doc["settings"].items()})
+    rows = doc["rows"]
+    info = doc["workers"]
+    m = doc["machine"]
+    lines = [
+        f"Run {doc['date']} on **{m['cpu']}**, {m['logical_cpus']} logical CPUs, {m['memory_gib']} GiB "
+        f"({m['os']}, Python {m['python']}); "
+        + ", ".join(f"{k} {v}" for w in info.values() for k, v in w["info"]["versions"].items())
+        + f"; PyTorch threads: {info.get('torch_eager', {}).get('info', {}).get('threads', '?')}.",
+        "",
+        f"Command: `{doc['command']}` (whole run: {doc['wall_s'] / 60:.1f} min). Sizes: D = {s.dim}, "
+        f"t_his = {s.t_his}, t_pred = {s.t_pred} (Bandai-Namco-2's protocol), the published layer sizes. "
+        f"Every time is the median of {s.repeats} runs after {s.warmup} warm-up runs, with the interquartile "
+        "range in brackets, in milliseconds. Ratio = PyTorch time / jaxmotion time (> 1: jaxmotion faster).",
+        "",
+        "### Training throughput",
+        "",
+        "| model | stage | batch | jaxmotion ms | PyTorch eager ms | ratio (eager) | windows/s jax / eager | target |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for r in rows:
+        if r["kind"].startswith("train"):
+            stage = "CVAE" if r["kind"] == "train_cvae" else f"sampler (K = {r['k']})"
+            lines.append(f"| {r['model']} | {stage} | {r['batch']} | {_ms(r.get('jax'))} | {_ms(r.get('torch_eager'))} | "
+                         f"{_ratio(r, 'torch_eager')} | {_wps(r, 'jax')} / {_wps(r, 'torch_eager')} | {_target(r, s)} |")
+    lines += [
+        "",
+        f"### Sampling K = {s.k} futures (the method's own sampler)",
+        "",
+        "| model | batch | jaxmotion ms | PyTorch eager ms | torch.compile ms | ratio (eager) | ratio (compile) | target |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for r in rows:
+        if r["kind"] == "sample":
+            lines.append(f"| {r['model']} | {r['batch']} | {_ms(r.get('jax'))} | {_ms(r.get('torch_eager'))} | "
+                         f"{_ms(r.get('torch_compile'))} | {_ratio(r, 'torch_eager')} | {_ratio(r, 'torch_compile')} | "
+                         f"{_target(r, s)} |")
+    for axis, label in (("k", "K"), ("t_pred", "t_pred")):
+        lines += [
+            "",
+            f"### Latency vs {label} (batch 1, CVAE decoder on N(0, I) latents)",
+            "",
+            f"| model | {label} | jaxmotion ms | PyTorch eager ms | ratio |",
+            "| --- | --- | --- | --- | --- |",
+        ]
+        fixed = "t_pred" if axis == "k" else "k"
+        sel = [r for r in rows if r["kind"] == "sample_prior" and r[fixed] == getattr(s, fixed)]
+        for r in sorted(sel, key=lambda r: (MODELS.index(r["model"]), r[axis])):
+            lines.append(f"| {r['model']} | {r[axis]} | {_ms(r.get('jax'))} | {_ms(r.get('torch_eager'))} | {_ratio(r, 'torch_eager')} |")
+    lines += [
+        "",
+        "### Peak memory and jaxmotion compile time",
+        "",
+        "Peak RSS = the process's resident-set high-water mark during the case (Linux `VmHWM`, reset per case "
+        "through `/proc/self/clear_refs`), process baseline (interpreter, libraries) included; compile = "
+        "jaxmotion's tracing + XLA compilation (`jit(...).lower(...).compile()`), and for torch.compile its "
+        "first (compiling) call; neither is in the timings above.",
+        "",
+        "| case | jax peak MB | eager peak MB | jax trace + compile s | torch.compile first call s |",
+        "| --- | --- | --- | --- | --- |",
+    ]
+    for r in rows:
+        if r["kind"] != "sample_prior" or (r["k"] in (1, 1000) and r["t_pred"] == s.t_pred):
+            j, e, c = r.get("jax", {}), r.get("torch_eager", {}), r.get("torch_compile", {})
+            mb = lambda rec: f"{rec['peak_rss_mb']:.0f}" if "peak_rss_mb" in rec else "-"
+            comp = f"{j['trace_s'] + j['compile_s']:.1f}" if "compile_s" in j else "-"
+            tc = f"{c['compile_s']:.0f}" if c.get("compile_s") == c.get("compile_s") and "compile_s" in c else "-"
+            lines.append(f"| {r['case']} | {mb(j)} | {mb(e)} | {comp} | {tc} |")
+    return "\n".join(lines)
+
+
+def update_readme(readme: Path, section: str) -> None:
+    """Replaces the text between the results markers of `readme` with `section`."""
+    text = readme.read_text() if readme.exists() else f"# Benchmarks\n\n{BEGIN}\n{END}\n"
+    if BEGIN not in text or END not in text:
+        text += f"\n{BEGIN}\n{END}\n"
+    head, rest = text.split(BEGIN, 1)
+    _, tail = rest.split(END, 1)
+    readme.write_text(f"{head}{BEGIN}\n{section}\n{END}{tail}")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="tiny sizes and repeats (smoke test); README untouched")
+    ap.add_argument("--models", default=",".join(MODELS), help=f"comma-separated subset of {','.join(MODELS)}")
+    ap.add_argument("--repeats", type=int, help="timed runs per case (default 7; quick 2)")
+    ap.add_argument("--warmup", type=int, help="untimed runs per case before timing (default 2; quick 1)")
+    ap.add_argument("--compile-cases", default="sample",
+                    help="case kinds also run under torch.compile ('' for none; e.g. 'sample,train_cvae'); "
+                         "compiling a 60-step training graph takes minutes on a 2-core CPU")
+    ap.add_argument("--tag", help="results file name (default: cpu, or quick)")
+    ap.add_argument("--no-readme", action="store_true", help="do not update benchmarks/README.md")
+    args = ap.parse_args(argv)
+    models = tuple(m for m in args.models.split(",") if m)
+    unknown = set(models) - set(MODELS)
+    if unknown:
+        ap.error(f"--models: unknown {sorted(unknown)}; known: {','.join(MODELS)}")
+    kw = {"models": models}
+    if args.repeats is not None:
+        kw["repeats"] = args.repeats
+    if args.warmup is not None:
+        kw["warmup"] = args.warmup
+    settings = Settings.quick(**kw) if args.quick else Settings(**kw)
+    t0 = time.perf_counter()
+    results = {"jax": run_worker("jax", settings, []), "torch_eager": run_worker("torch_eager", settings, [])}
+    if args.compile_cases:
+        results["torch_compile"] = run_worker("torch_compile", settings, ["--cases", args.compile_cases])
+    doc = {
+        "date": datetime.datetime.now().isoformat(timespec="seconds"),
+        "command": "python benchmarks/run.py " + " ".join(sys.argv[1:] if argv is None else argv),
+        "machine": machine(),
+        "settings": dataclasses.asdict(settings),
+        "workers": {k: {"info": v["info"]} for k, v in results.items()},
+        "rows": merge(results),
+    }
+    doc["wall_s"] = time.perf_counter() - t0
+    tag = args.tag or ("quick" if args.quick else "cpu")
+    out = ROOT / "benchmarks" / "results" / f"{tag}.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(doc, indent=1))
+    section = render(doc)
+    (out.with_suffix(".md")).write_text(section + "\n")
+    if not (args.quick or args.no_readme):
+        update_readme(ROOT / "benchmarks" / "README.md", section)
+    print(section)
+    print(f"\nwrote {out} ({doc['wall_s'] / 60:.1f} min)")
+
+
+if __name__ == "__main__":
+    main()

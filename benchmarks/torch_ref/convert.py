@@ -1,0 +1,183 @@
+"""Loads jaxmotion (Flax) parameters into the PyTorch reference modules.
+
+Flax `Dense` kernels are `(in, out)` and jaxmotion's GRU weights `(in, 3h)`; PyTorch stores
+`(out, in)` and `(3h, in)`, so every conversion is a transpose, with identical gate order (r, z, n).
+Parameters are taken from any nested mapping of array-likes (a Flax params pytree, or numpy arrays
+read back from an `.npz`), so this module needs no JAX.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+import torch
+from torch import nn
+
+from benchmarks.torch_ref import divsamp, dlow, mojo
+from benchmarks.torch_ref.layers import GRU, MLP
+
+
+def _t(a) -> torch.Tensor:
+    return torch.from_numpy(np.array(a, dtype=np.float32, copy=True))
+
+
+def _inner(p: Mapping) -> Mapping:
+    return p["params"] if "params" in p else p
+
+
+def _copy(dst: torch.Tensor, src: torch.Tensor, name: str) -> None:
+    if tuple(dst.shape) != tuple(src.shape):
+        raise ValueError(f"{name}: jaxmotion shape {tuple(src.shape)} does not fit PyTorch shape {tuple(dst.shape)}")
+    with torch.no_grad():
+        dst.copy_(src)
+
+
+def load_dense(layer: nn.Linear, p: Mapping, name: str = "dense") -> None:
+    """Copies a Flax `Dense` (`kernel (in, out)`, `bias`) into `nn.Linear`."""
+    _copy(layer.weight, _t(p["kernel"]).T, f"{name}.kernel")
+    _copy(layer.bias, _t(p["bias"]), f"{name}.bias")
+
+
+def load_mlp(mlp: MLP, p: Mapping, name: str = "mlp") -> None:
+    """Copies jaxmotion's MLP (`dense_0`, `dense_1`, ...) into the reference MLP."""
+    if len(p) != len(mlp.layers):
+        raise ValueError(f"{name}: {len(p)} jaxmotion layers, {len(mlp.layers)} PyTorch layers")
+    for i, layer in enumerate(mlp.layers):
+        load_dense(layer, p[f"dense_{i}"], f"{name}.dense_{i}")
+
+
+def load_gru_cell(cell: nn.GRUCell, p: Mapping, name: str = "cell") -> None:
+    """Copies jaxmotion's GRUCell (`weight_ih (in, 3h)`, ...) into `nn.GRUCell`."""
+    _copy(cell.weight_ih, _t(p["weight_ih"]).T, f"{name}.weight_ih")
+    _copy(cell.weight_hh, _t(p["weight_hh"]).T, f"{name}.weight_hh")
+    _copy(cell.bias_ih, _t(p["bias_ih"]), f"{name}.bias_ih")
+    _copy(cell.bias_hh, _t(p["bias_hh"]), f"{name}.bias_hh")
+
+
+def load_gru(gru: GRU, p: Mapping, name: str = "gru") -> None:
+    """Copies jaxmotion's scanned GRU (`cell/...`) into the one-layer `nn.GRU`."""
+    c = p["cell"]
+    _copy(gru.rnn.weight_ih_l0, _t(c["weight_ih"]).T, f"{name}.weight_ih")
+    _copy(gru.rnn.weight_hh_l0, _t(c["weight_hh"]).T, f"{name}.weight_hh")
+    _copy(gru.rnn.bias_ih_l0, _t(c["bias_ih"]), f"{name}.bias_ih")
+    _copy(gru.rnn.bias_hh_l0, _t(c["bias_hh"]), f"{name}.bias_hh")
+
+
+def dlow_cvae(model: dlow.DLowCVAE, params: Mapping) -> dlow.DLowCVAE:
+    """Returns `model` holding the jaxmotion DLowCVAE `params`."""
+    p = _inner(params)
+    load_gru(model.x_rnn, p["x_rnn"], "x_rnn")
+    load_gru(model.e_rnn, p["e_rnn"], "e_rnn")
+    load_mlp(model.e_mlp, p["e_mlp"], "e_mlp")
+    load_dense(model.e_mu, p["e_mu"], "e_mu")
+    load_dense(model.e_logvar, p["e_logvar"], "e_logvar")
+    load_mlp(model.drnn_mlp, p["drnn_mlp"], "drnn_mlp")
+    load_gru_cell(model.d_cell, p["d_cell"], "d_cell")
+    load_mlp(model.d_mlp, p["d_mlp"], "d_mlp")
+    load_dense(model.d_out, p["d_out"], "d_out")
+    return model
+
+
+def dlow_q(model: dlow.DLowQ, params: Mapping) -> dlow.DLowQ:
+    """Returns `model` holding the jaxmotion DLowQ `params`."""
+    p = _inner(params)
+    load_gru(model.x_rnn, p["x_rnn"], "x_rnn")
+    load_mlp(model.mlp, p["mlp"], "mlp")
+    load_dense(model.head_A, p["head_A"], "head_A")
+    load_dense(model.head_b, p["head_b"], "head_b")
+    return model
+
+
+def mojo_cvae(model: mojo.MojoCVAE, params: Mapping) -> mojo.MojoCVAE:
+    """Returns `model` holding the jaxmotion MojoCVAE `params` (the same layer names as DLow's CVAE)."""
+    return dlow_cvae(model, params)
+
+
+def mojo_q(model: mojo.MojoQ, params: Mapping) -> mojo.MojoQ:
+    """Returns `model` holding the jaxmotion MojoQ `params` (shared trunk: `q/x_rnn`, `q/mlp`, `q/head_*`)."""
+    return dlow_q(model, _inner(params)["q"])
+
+
+def load_batchnorm(bn: nn.BatchNorm1d, p: Mapping, stats: Mapping | None, name: str = "bn") -> None:
+    """Copies a Flax `BatchNorm` (`scale`, `bias`; running `mean`, `var`) into `nn.BatchNorm1d`."""
+    _copy(bn.weight, _t(p["scale"]), f"{name}.scale")
+    _copy(bn.bias, _t(p["bias"]), f"{name}.bias")
+    if stats is not None:
+        _copy(bn.running_mean, _t(stats["mean"]), f"{name}.mean")
+        _copy(bn.running_var, _t(stats["var"]), f"{name}.var")
+
+
+def load_graph_conv(gc: divsamp.GraphConv, p: Mapping, name: str = "gc") -> None:
+    _copy(gc.weight, _t(p["kernel"]), f"{name}.kernel")
+    _copy(gc.att, _t(p["adjacency"]), f"{name}.adjacency")
+    _copy(gc.bias, _t(p["bias"]), f"{name}.bias")
+
+
+def _sub(stats: Mapping | None, key: str):
+    return None if stats is None else stats[key]
+
+
+def load_gcl(block: divsamp.GCLBlock, p: Mapping, stats: Mapping | None, name: str) -> None:
+    load_graph_conv(block.gc, p["gc"], f"{name}.gc")
+    load_batchnorm(block.bn, p["bn"], _sub(stats, "bn"), f"{name}.bn")
+
+
+def load_gcl_stack(stack: divsamp.GCLStack, p: Mapping, stats: Mapping | None, name: str) -> None:
+    load_gcl(stack.gcl_in, p["gcl_in"], _sub(stats, "gcl_in"), f"{name}.gcl_in")
+    if len(stack.res) != sum(k.startswith("res_") for k in p):
+        raise ValueError(f"{name}: {sum(k.startswith('res_') for k in p)} jaxmotion residual blocks, {len(stack.res)} PyTorch")
+    for i, block in enumerate(stack.res):
+        r, rs = p[f"res_{i}"], _sub(stats, f"res_{i}")
+        load_gcl(block.gcl_0, r["gcl_0"], _sub(rs, "gcl_0"), f"{name}.res_{i}.gcl_0")
+        load_gcl(block.gcl_1, r["gcl_1"], _sub(rs, "gcl_1"), f"{name}.res_{i}.gcl_1")
+
+
+def divsamp_cvae(model: divsamp.DivSampCVAE, variables: Mapping) -> divsamp.DivSampCVAE:
+    """Returns `model` holding the jaxmotion DivSampCVAE `variables` (`params` and `batch_stats`)."""
+    p, s = variables["params"], variables.get("batch_stats")
+    load_gcl_stack(model.enc, p["enc"], _sub(s, "enc"), "enc")
+    load_dense(model.e_mu, p["e_mu"], "e_mu")
+    load_dense(model.e_logvar, p["e_logvar"], "e_logvar")
+    load_gcl_stack(model.dec, p["dec"], _sub(s, "dec"), "dec")
+    load_graph_conv(model.d_out, p["d_out"], "d_out")
+    return model
+
+
+def divsamp_sampler(model: divsamp.DivSampSampler, variables: Mapping) -> divsamp.DivSampSampler:
+    """Returns `model` holding the jaxmotion DivSampSampler `variables` (uniform pi: no `pi_*` parameters)."""
+    p, s = variables["params"], variables.get("batch_stats")
+    if "pi_logits" in p or "pi_head" in p:
+        raise ValueError("divsamp_sampler: the reference sampler has a uniform pi; got a learned pi")
+    load_gcl_stack(model.condition_enc, p["condition_enc"], _sub(s, "condition_enc"), "condition_enc")
+    load_dense(model.bases, p["bases"], "bases")
+    load_batchnorm(model.bases_bn, p["bases_bn"], _sub(s, "bases_bn"), "bases_bn")
+    for head in ("mean", "logvar"):
+        m, hp = getattr(model, head), p[head]
+        load_dense(m.dense_0, hp["dense_0"], f"{head}.dense_0")
+        load_batchnorm(m.bn, hp["bn"], _sub(_sub(s, head), "bn"), f"{head}.bn")
+        load_dense(m.dense_1, hp["dense_1"], f"{head}.dense_1")
+    return model
+
+
+def flatten(params: Mapping, prefix: str = "") -> dict[str, np.ndarray]:
+    """Returns `{"a/b/c": array}` for a nested mapping (for saving to `.npz`)."""
+    out = {}
+    for k, v in params.items():
+        if isinstance(v, Mapping):
+            out.update(flatten(v, f"{prefix}{k}/"))
+        else:
+            out[f"{prefix}{k}"] = np.asarray(v)
+    return out
+
+
+def unflatten(flat: Mapping[str, np.ndarray]) -> dict:
+    """Returns the nested dict that `flatten` flattened."""
+    out: dict = {}
+    for key, v in flat.items():
+        *path, leaf = key.split("/")
+        d = out
+        for part in path:
+            d = d.setdefault(part, {})
+        d[leaf] = v
+    return out

@@ -1,0 +1,263 @@
+"""A body model from any BVH skeleton: bone lengths as shape, joint rotations as pose, rigid markers.
+
+    body = skeleton_body_from_bvh(read_bvh("01_01.bvh"), marker_set="cmu41")
+    params = body.zero_params()            # the BVH's reference frame, at its own place
+    markers = body.markers(params)         # (41, 3) metres
+
+Parameters (`BodyParams`): `transl` is the root joint's position; `orient` (6-D) rotates the
+root's reference orientation; `shape[j-1]` is the log length scale of bone `parent(j) -> j`;
+`pose[3(j-1):3j]` is joint j's axis-angle rotation relative to its reference rotation, so the
+zero pose is the reference frame's pose (a standing person), not the BVH rest pose (for
+Bandai-Namco-2 that is every bone along one line). No hands: `hand` has size 0.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+from jaxtyping import Array, Float
+
+from jaxmotion.body.markersets import MARKER_SETS, MARKER_SPECS, resolve_roles
+from jaxmotion.body.params import BodyParams, zero_params
+from jaxmotion.body.rotation import axis_angle_to_matrix, matrix_to_axis_angle, matrix_to_rot6d, rot6d_to_matrix
+from jaxmotion.data.bvh import Bvh, euler_matrices
+
+
+@functools.lru_cache(maxsize=None)
+def _levels(parents: tuple[int, ...]):
+    """Returns `(levels, inverse)`: joints grouped by depth, as positions in depth-sorted order."""
+    depth = [0] * len(parents)
+    for j, p in enumerate(parents):
+        if p >= j:
+            raise ValueError(f"skeleton: joint {j} listed before its parent {p}")
+        depth[j] = 0 if p < 0 else depth[p] + 1
+    order = sorted(range(len(parents)), key=lambda j: (depth[j], j))
+    pos = {j: i for i, j in enumerate(order)}
+    levels = []
+    for d in range(max(depth) + 1):
+        idx = [j for j in order if depth[j] == d]
+        levels.append((np.array(idx), np.array([pos.get(parents[j], 0) for j in idx])))
+    return tuple(levels), np.array([pos[j] for j in range(len(parents))])
+
+
+def forward_kinematics(
+    parents: tuple[int, ...], local_r: Float[Array, "j 3 3"], local_t: Float[Array, "j 3"]
+) -> tuple[Float[Array, "j 3 3"], Float[Array, "j 3"]]:
+    """Returns global rotations and positions; joints of one depth are computed together."""
+    levels, inverse = _levels(tuple(parents))
+    rs, ts = [], []
+    for d, (idx, ppos) in enumerate(levels):
+        if d == 0:
+            rs.append(local_r[idx])
+            ts.append(local_t[idx])
+            continue
+        r_all, t_all = jnp.concatenate(rs), jnp.concatenate(ts)
+        rp, tp = r_all[ppos], t_all[ppos]
+        rs.append(rp @ local_r[idx])
+        ts.append(tp + jnp.einsum("nij,nj->ni", rp, local_t[idx]))
+    return jnp.concatenate(rs)[inverse], jnp.concatenate(ts)[inverse]
+
+
+@struct.dataclass
+class SkeletonBody:
+    """A skeleton body model: arrays are pytree leaves, names and structure are static."""
+
+    offsets: Float[Array, "j 3"]  # bone vectors in the parent's frame (metres)
+    ref_rot: Float[Array, "j 3 3"]  # local rotations of the reference pose
+    marker_offsets: Float[Array, "m 3"]  # each marker in its joint's frame (metres)
+    names: tuple[str, ...] = struct.field(pytree_node=False)
+    parents: tuple[int, ...] = struct.field(pytree_node=False)
+    marker_names: tuple[str, ...] = struct.field(pytree_node=False)
+    marker_joints: tuple[int, ...] = struct.field(pytree_node=False)
+
+    @property
+    def num_joints(self) -> int:
+        return len(self.parents)
+
+    @property
+    def num_markers(self) -> int:
+        return len(self.marker_names)
+
+    def zero_params(self) -> BodyParams:
+        """Returns the reference pose: identity orientation, unit bone scales, zero pose."""
+        j = self.num_joints
+        p = zero_params(j - 1, 3 * (j - 1), 0)
+        return p._replace(transl=self.offsets[0])
+
+    def transforms(self, params: BodyParams) -> tuple[Float[Array, "j 3 3"], Float[Array, "j 3"]]:
+        """Returns every joint's global rotation and position."""
+        pose_r = axis_angle_to_matrix(params.pose.reshape(-1, 3))
+        root_r = rot6d_to_matrix(params.orient) @ self.ref_rot[0]
+        local_r = jnp.concatenate([root_r[None], self.ref_rot[1:] @ pose_r])
+        scale = jnp.exp(params.shape)[:, None]
+        local_t = jnp.concatenate([params.transl[None], self.offsets[1:] * scale])
+        return forward_kinematics(self.parents, local_r, local_t)
+
+    def joints(self, params: BodyParams) -> Float[Array, "j 3"]:
+        """Returns joint positions `(J, 3)`."""
+        return self.transforms(params)[1]
+
+    def markers(self, params: BodyParams) -> Float[Array, "m 3"]:
+        """Returns marker positions `(M, 3)`: each its joint's rotation times offset plus position."""
+        r, t = self.transforms(params)
+        mj = np.asarray(self.marker_joints)
+        return jnp.einsum("mij,mj->mi", r[mj], self.marker_offsets) + t[mj]
+
+
+def body_frame(joints: np.ndarray, roles: dict[str, int]) -> np.ndarray:
+    """Returns `(3, 3)` rows forward, left, up of a standing pose (left: right hip -> left hip)."""
+    left = joints[roles["l_thigh"]] - joints[roles["r_thigh"]]
+    left /= np.linalg.norm(left)
+    up = joints[roles["neck"]] - joints[roles["pelvis"]]
+    up -= up @ left * left
+    up /= np.linalg.norm(up)
+    return np.stack([np.cross(left, up), left, up])
+
+
+def attach_markers(body: SkeletonBody, marker_names: tuple[str, ...] | str) -> SkeletonBody:
+    """Returns `body` with markers placed by `MARKER_SPECS` in its reference (zero-parameter) pose.
+
+    `marker_names` is a tuple of names or the name of a set in `MARKER_SETS`. Raises ValueError
+    naming the marker and the joint role when the skeleton has no joint for it.
+    """
+    if isinstance(marker_names, str):
+        if marker_names not in MARKER_SETS:
+            raise ValueError(f"unknown marker set {marker_names!r}; known: {sorted(MARKER_SETS)}")
+        marker_names = MARKER_SETS[marker_names]
+    roles = resolve_roles(body.names)
+    for need in ("pelvis", "neck", "l_thigh", "r_thigh"):
+        if need not in roles:
+            raise ValueError(f"skeleton joints {body.names} have no {need!r} joint (aliases in markersets.ROLE_ALIASES)")
+    r, t = jax.device_get(body.transforms(body.zero_params()))
+    frame = body_frame(t, roles)
+    joints, offsets = [], []
+    for name in marker_names:
+        if name not in MARKER_SPECS:
+            raise ValueError(f"marker {name!r} has no attachment in MARKER_SPECS")
+        s = MARKER_SPECS[name]
+        for role in (s.role, s.to):
+            if role is not None and role not in roles:
+                raise ValueError(f"marker {name!r} needs a {role!r} joint; skeleton joints are {body.names}")
+        j = roles[s.role]
+        base = t[j] if s.to is None else t[j] + s.along * (t[roles[s.to]] - t[j])
+        world = base + np.array([s.fwd, s.lat, s.up]) @ frame
+        joints.append(j)
+        offsets.append(r[j].T @ (world - t[j]))
+    return body.replace(
+        marker_offsets=jnp.asarray(np.array(offsets), jnp.float32),
+        marker_names=tuple(marker_names),
+        marker_joints=tuple(joints),
+    )
+
+
+def bvh_local_rotations(bvh: Bvh, frames=None) -> np.ndarray:
+    """Returns `(F, J, 3, 3)` local rotation matrices of every joint from the BVH rotation channels."""
+    motion = np.atleast_2d(bvh.motion if frames is None else bvh.motion[frames])
+    out = np.empty((motion.shape[0], bvh.num_joints, 3, 3))
+    for j, (chans, start) in enumerate(zip(bvh.channels, bvh.channel_starts)):
+        cols = [start + k for k, c in enumerate(chans) if c.endswith("rotation")]
+        axes = "".join(c[0] for c in chans if c.endswith("rotation"))
+        out[:, j] = euler_matrices(motion[:, cols], axes)
+    return out
+
+
+def _drop_ground(bvh: Bvh) -> bool:
+    from jaxmotion.data.datasets import _is_ground_node
+
+    return _is_ground_node(bvh)
+
+
+def skeleton_body_from_bvh(
+    bvh: Bvh, marker_set: tuple[str, ...] | str = "cmu41", *, ref_frame: int = 0, scale: float | None = None
+) -> SkeletonBody:
+    """Returns a skeleton body of the BVH's joints, reference pose = frame `ref_frame` (metres).
+
+    `scale` is metres per file unit (None: `datasets.guess_scale`). A ground node root (Bandai's
+    `joint_Root`) is dropped and its rotation folded into the new root's.
+    """
+    from jaxmotion.data.datasets import guess_scale
+
+    if not 0 <= ref_frame < bvh.num_frames:
+        raise ValueError(f"{bvh.path}: ref_frame {ref_frame} outside [0, {bvh.num_frames})")
+    scale = guess_scale(bvh) if scale is None else scale
+    local = bvh_local_rotations(bvh, [ref_frame])[0]
+    offsets = bvh.offsets * scale
+    names, parents = bvh.names, bvh.parents
+    if _drop_ground(bvh):
+        local = np.concatenate([(local[0] @ local[1])[None], local[2:]])
+        offsets = offsets[1:]
+        names = names[1:]
+        parents = tuple(-1 if p <= 0 else p - 1 for p in parents[1:])
+    body = SkeletonBody(
+        offsets=jnp.asarray(offsets, jnp.float32),
+        ref_rot=jnp.asarray(local, jnp.float32),
+        marker_offsets=jnp.zeros((0, 3), jnp.float32),
+        names=tuple(names),
+        parents=tuple(parents),
+        marker_names=(),
+        marker_joints=(),
+    )
+    return attach_markers(body, marker_set)
+
+
+def params_from_bvh(body: SkeletonBody, bvh: Bvh, frames=None, *, scale: float | None = None) -> BodyParams:
+    """Returns per-frame `BodyParams` (leading axis F) that reproduce the BVH motion on `body`.
+
+    `body` must come from a BVH with the same skeleton (`skeleton_body_from_bvh`); shape is 0.
+    """
+    from jaxmotion.data.bvh import forward_kinematics as bvh_fk
+    from jaxmotion.data.datasets import guess_scale
+
+    scale = guess_scale(bvh) if scale is None else scale
+    local = bvh_local_rotations(bvh, frames)
+    pos = bvh_fk(bvh, frames) * scale
+    if _drop_ground(bvh):
+        local = np.concatenate([(local[:, 0] @ local[:, 1])[:, None], local[:, 2:]], axis=1)
+        pos = pos[:, 1:]
+    if local.shape[1] != body.num_joints:
+        raise ValueError(f"{bvh.path}: {local.shape[1]} joints but the body has {body.num_joints}")
+    ref = np.asarray(body.ref_rot, np.float64)
+    rel = np.einsum("jki,fjkl->fjil", ref, local)  # ref^T @ R
+    n = local.shape[0]
+    return BodyParams(
+        transl=jnp.asarray(pos[:, 0], jnp.float32),
+        orient=matrix_to_rot6d(jnp.asarray(local[:, 0] @ ref[0].T, jnp.float32)),
+        shape=jnp.zeros((n, body.num_joints - 1), jnp.float32),
+        pose=jnp.asarray(np.asarray(matrix_to_axis_angle(jnp.asarray(rel[:, 1:]))), jnp.float32).reshape(n, -1),
+        hand=jnp.zeros((n, 0), jnp.float32),
+    )
+
+
+def toy_skeleton(marker_set: tuple[str, ...] | str = "cmu41") -> SkeletonBody:
+    """Returns a 21-joint standing adult skeleton (metres, Y up, facing +Z, arms down) with CMU joint
+    names, for tests and examples that must run without data files."""
+    spec = [  # name, parent, offset
+        ("Hips", None, (0.0, 0.95, 0.0)), ("Spine", "Hips", (0.0, 0.10, 0.0)),
+        ("Spine1", "Spine", (0.0, 0.20, 0.0)), ("Neck", "Spine1", (0.0, 0.18, 0.0)),
+        ("Head", "Neck", (0.0, 0.10, 0.0)),
+    ]  # fmt: skip
+    for s, x in (("Left", 1.0), ("Right", -1.0)):
+        spec += [
+            (f"{s}Shoulder", "Spine1", (0.03 * x, 0.15, 0.0)), (f"{s}Arm", f"{s}Shoulder", (0.15 * x, 0.0, 0.0)),
+            (f"{s}ForeArm", f"{s}Arm", (0.0, -0.29, 0.0)), (f"{s}Hand", f"{s}ForeArm", (0.0, -0.26, 0.0)),
+            (f"{s}UpLeg", "Hips", (0.09 * x, -0.05, 0.0)), (f"{s}Leg", f"{s}UpLeg", (0.0, -0.42, 0.0)),
+            (f"{s}Foot", f"{s}Leg", (0.0, -0.42, 0.0)), (f"{s}ToeBase", f"{s}Foot", (0.0, -0.05, 0.13)),
+        ]  # fmt: skip
+    names = tuple(n for n, _, _ in spec)
+    parents = tuple(-1 if p is None else names.index(p) for _, p, _ in spec)
+    order = _levels(parents)  # validates parents-first order
+    del order
+    body = SkeletonBody(
+        offsets=jnp.asarray([o for _, _, o in spec], jnp.float32),
+        ref_rot=jnp.broadcast_to(jnp.eye(3, dtype=jnp.float32), (len(names), 3, 3)),
+        marker_offsets=jnp.zeros((0, 3), jnp.float32),
+        names=names,
+        parents=parents,
+        marker_names=(),
+        marker_joints=(),
+    )
+    return attach_markers(body, marker_set)

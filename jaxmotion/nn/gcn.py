@@ -1,0 +1,92 @@
+"""Graph convolutions over joints with a learnable adjacency, and GCL-BN-Tanh stacks.
+
+Inputs are node features `(..., J, F)`: J graph nodes (joints) with F features each (for
+DivSamp and GSPS, the first `n_dct` DCT coefficients of each coordinate, `F = 3 * n_dct`).
+A layer computes `H' = A H W + b` (Mao et al., ICCV 2019 "Learning Trajectory Dependencies",
+Eq. (1)) with a dense, learnable `A` (J x J) that starts random rather than from the kinematic
+tree, as in the DivSamp and GSPS releases (`GraphConv`: weight, att and bias all drawn from
+U(-1/sqrt(F_out), 1/sqrt(F_out))).
+
+A GCL-BN-Tanh block normalises each of the J * F outputs separately (PyTorch `BatchNorm1d(J * F)`
+on the flattened features, as in the releases), so the BatchNorm statistics live in the
+`batch_stats` collection: apply with `train=True, mutable=["batch_stats"]` while training and
+`train=False` (running averages) to evaluate.
+"""
+
+from __future__ import annotations
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+
+def _uniform(bound: float):
+    return lambda key, shape, dtype=jnp.float32: jax.random.uniform(key, shape, dtype, -bound, bound)
+
+
+class GraphConv(nn.Module):
+    """Returns `A H W + b` for node features H `(..., J, F_in)`: a graph convolution with learnable A (J x J)."""
+
+    features: int
+    use_bias: bool = True
+
+    @nn.compact
+    def __call__(self, h: Float[Array, "... j f"]) -> Float[Array, "... j o"]:
+        j, f_in = h.shape[-2:]
+        init = _uniform(1.0 / float(self.features) ** 0.5)
+        w = self.param("kernel", init, (f_in, self.features))
+        a = self.param("adjacency", init, (j, j))
+        out = jnp.einsum("ij,...jo->...io", a, h @ w)
+        if self.use_bias:
+            out = out + self.param("bias", init, (self.features,))
+        return out
+
+
+class GCLBlock(nn.Module):
+    """Returns `tanh(BN(GraphConv(H)))` `(..., J, F_out)`: one GCL-BN-Tanh layer.
+
+    BatchNorm statistics are taken over every leading axis (batch, and K when present) for each
+    of the J * F_out features; PyTorch's defaults (momentum 0.1, eps 1e-5) are kept.
+    """
+
+    features: int
+
+    @nn.compact
+    def __call__(self, h: Float[Array, "... j f"], *, train: bool) -> Float[Array, "... j o"]:
+        x = GraphConv(self.features, name="gc")(h)
+        shape = x.shape
+        x = x.reshape(shape[:-2] + (shape[-2] * shape[-1],))
+        x = nn.BatchNorm(use_running_average=not train, momentum=0.9, epsilon=1e-5, name="bn")(x)
+        return jnp.tanh(x.reshape(shape))
+
+
+class ResidualGCLBlock(nn.Module):
+    """Returns `H + GCL(GCL(H))`: two GCL-BN-Tanh layers with a skip connection (`ResGCB` in the releases)."""
+
+    features: int
+
+    @nn.compact
+    def __call__(self, h: Float[Array, "... j f"], *, train: bool) -> Float[Array, "... j f"]:
+        x = GCLBlock(h.shape[-1], name="gcl_0")(h, train=train)
+        x = GCLBlock(self.features, name="gcl_1")(x, train=train)
+        return x + h
+
+
+class GCLStack(nn.Module):
+    """Returns node features `(..., J, features)` after `1 + 2 * num_residual` GCL-BN-Tanh layers.
+
+    One GCL-BN-Tanh layer maps the input to `features`, then `num_residual` residual pairs follow:
+    DivSamp's CVAE encoder and decoder use 4 pairs (9 layers, supp. Table 4), its sampler N_beta 2
+    (5 layers, supp. Table 3).
+    """
+
+    features: int
+    num_residual: int
+
+    @nn.compact
+    def __call__(self, h: Float[Array, "... j f"], *, train: bool) -> Float[Array, "... j o"]:
+        h = GCLBlock(self.features, name="gcl_in")(h, train=train)
+        for i in range(self.num_residual):
+            h = ResidualGCLBlock(self.features, name=f"res_{i}")(h, train=train)
+        return h
