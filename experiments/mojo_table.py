@@ -27,7 +27,7 @@ ROWS = [
     ("DLow's CVAE, N(0,I)", "dlow_bandai", "cvae"),
     ("zero-velocity", "mojo_bandai", "zero_velocity"),
 ]
-COLUMNS = ["APD", "ADE", "FDE", "MMADE", "MMFDE", "FSE"]
+COLUMNS = ["APD", "ADE", "FDE", "MMADE", "MMFDE", "FSE", "ADE-m", "BDF"]
 
 
 def load(runs: Path, run: str, method: str, k: int = 50) -> dict | None:
@@ -88,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
         vals = [f"{m[c]:.3f}" if c in m else "—" for c in COLUMNS]
         lines.append(f"| {label} | " + " | ".join(vals) + f" | `{run}` / `{method}` |")
         table.append({"row": label, "run": run, "method": method, "K": rec["K"], "n_windows": rec["n_windows"],
-                      **{c: m.get(c) for c in COLUMNS + ["ADE-m", "FDE-m", "BDF"]}})
+                      **{c: m.get(c) for c in COLUMNS + ["FDE-m"]}})
     out.parent.mkdir(parents=True, exist_ok=True)
     out.with_suffix(".md").write_text("\n".join(lines) + "\n")
     out.with_suffix(".json").write_text(json.dumps(table, indent=1))

@@ -1,7 +1,10 @@
 # jaxmotion train --config experiments/configs/mojo_bandai.py --data ../shared/data/bandai-namco-2 --workdir /tmp/runs/mojo_bandai
 # jaxmotion eval  --config experiments/configs/mojo_bandai.py --data ../shared/data/bandai-namco-2 --workdir /tmp/runs/mojo_bandai
 # Shared Bandai budget: CVAE 2000 steps x 64, per-band DLow 400 steps x 16 with K = 50 (DLow-style lr schedule).
-# Runtime and result: see the MOJO section of experiments/README.md ("Measured").
+# Runtime: train 16 min, eval 3.4 min (2 shared CPU cores). Result (K = 50, 1,609 windows), metres:
+#   mojo        APD 5.587 ADE 0.272 FDE 0.321 MMADE 0.314 MMFDE 0.349 FSE 0.136
+#   mojo_prior  APD 1.421 ADE 0.326 FDE 0.351 MMADE 0.366 MMFDE 0.377 FSE 0.015 (N(0, I) in all bands)
+#   zero_vel.   APD 0.000 ADE 0.433 FDE 0.484 MMADE 0.481 MMFDE 0.514 FSE -0.472
 """MOJO on Bandai-Namco-2 joints (15 -> 60 frames at 30 fps, D = 60): latent DCT (60 bands x 16),
 L1 + 3 x velocity L1 + robust KLD (Eq. (1)), residual decoder; DLow on the lowest 12 bands.
 

@@ -1,6 +1,7 @@
 # jaxmotion run --config experiments/configs/mojo_dct_bandai.py --data ../shared/data/bandai-namco-2 --workdir /tmp/runs/mojo_dct_bandai
 # Shared Bandai budget: CVAE 2000 steps x 64, DLow 400 steps x 16 with K = 50.
-# Runtime and result: see the MOJO section of experiments/README.md ("Measured").
+# Runtime: 14 min (2 shared CPU cores). Result (K = 50, 1,609 windows), metres:
+#   mojo (MOJO-DCT)  APD 0.173 ADE 0.342 FDE 0.431 MMADE 0.383 MMFDE 0.450 FSE -0.016
 """MOJO-DCT on Bandai-Namco-2: MOJO without the latent DCT space (one 128-d latent vector, plain
 KLD with weight 0.1; the release's `amass_vanilla_nsamp50.yml`), same loss and residual decoder,
 DLow on the one vector."""
