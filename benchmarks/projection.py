@@ -16,10 +16,17 @@ mean per-marker distance to the targets, in mm, at the last frame and over all f
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import os
+import sys
 import time
 from pathlib import Path
+
+# Run as a script, this folder is sys.path[0], and benchmarks/profile.py would shadow the standard
+# library's `profile` (imported by cProfile inside torch and jax).
+_HERE = Path(__file__).resolve().parent
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
 
 import jax
 import jax.numpy as jnp
@@ -39,10 +46,12 @@ def bandai_targets(data: Path, rng: np.random.Generator):
 
     clips = sorted(_bandai_clip_dir(data, None).glob("dataset-2_*_normal_*.bvh"))
     body = skeleton_body_from_bvh(read_bvh(clips[0]), "bandai")
-    windows = []
-    for i in range(K):
+    windows, n, i = [], 2 * (T + 1), 0
+    while len(windows) < K:
         bvh = read_bvh(clips[(i * 7) % len(clips)])
-        n = 2 * (T + 1)
+        i += 1
+        if bvh.num_frames <= n:  # a few clips are shorter than one window
+            continue
         s = int(rng.integers(0, bvh.num_frames - n))
         windows.append(params_from_bvh(body, bvh, np.arange(s, s + n, 2)))
     params = jax.tree.map(lambda *a: jnp.stack(a), *windows)
@@ -114,7 +123,10 @@ def main() -> None:
     # ---------------- PyTorch: MOJO's Adam fit, frame by frame, batched over K.
     import torch
 
-    from torch_body import TorchSkeletonBody, mojo_adam_fit
+    spec = importlib.util.spec_from_file_location("torch_body", _HERE / "torch_body.py")
+    torch_body = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(torch_body)
+    TorchSkeletonBody, mojo_adam_fit = torch_body.TorchSkeletonBody, torch_body.mojo_adam_fit
 
     torch.set_num_threads(os.cpu_count() or 1)
     tb = TorchSkeletonBody(body)

@@ -110,7 +110,7 @@ def render(doc: dict) -> str:
     lines = [
         f"Run {doc['date']} on **{m['cpu']}**, {m['logical_cpus']} logical CPUs, {m['memory_gib']} GiB "
         f"({m['os']}, Python {m['python']}); "
-        + ", ".join(f"{k} {v}" for w in info.values() for k, v in w["info"]["versions"].items())
+        + ", ".join(f"{k} {v}" for k, v in {k: v for w in info.values() for k, v in w["info"]["versions"].items()}.items())
         + f"; PyTorch threads: {info.get('torch_eager', {}).get('info', {}).get('threads', '?')}.",
         "",
         f"Command: `{doc['command']}` (whole run: {doc['wall_s'] / 60:.1f} min). Sizes: D = {s.dim}, "
@@ -161,13 +161,13 @@ def render(doc: dict) -> str:
         "jaxmotion's tracing + XLA compilation (`jit(...).lower(...).compile()`), and for torch.compile its "
         "first (compiling) call; neither is in the timings above.",
         "",
-        "| case | jax peak MB | eager peak MB | jax trace + compile s | torch.compile first call s |",
+        "| case | jaxmotion peak MB (+ during case) | PyTorch eager peak MB (+ during case) | jaxmotion trace + compile s | torch.compile first call s |",
         "| --- | --- | --- | --- | --- |",
     ]
     for r in rows:
         if r["kind"] != "sample_prior" or (r["k"] in (1, 1000) and r["t_pred"] == s.t_pred):
             j, e, c = r.get("jax", {}), r.get("torch_eager", {}), r.get("torch_compile", {})
-            mb = lambda rec: f"{rec['peak_rss_mb']:.0f}" if "peak_rss_mb" in rec else "-"
+            mb = lambda rec: f"{rec['peak_rss_mb']:.0f} (+{rec['peak_rss_mb'] - rec['rss_before_mb']:.0f})" if "peak_rss_mb" in rec else "-"
             comp = f"{j['trace_s'] + j['compile_s']:.1f}" if "compile_s" in j else "-"
             tc = f"{c['compile_s']:.0f}" if c.get("compile_s") == c.get("compile_s") and "compile_s" in c else "-"
             lines.append(f"| {r['case']} | {mb(j)} | {mb(e)} | {comp} | {tc} |")
@@ -193,9 +193,22 @@ def main(argv=None):
     ap.add_argument("--compile-cases", default="sample",
                     help="case kinds also run under torch.compile ('' for none; e.g. 'sample,train_cvae'); "
                          "compiling a 60-step training graph takes minutes on a 2-core CPU")
+    ap.add_argument("--frameworks", default="jax,torch_eager,torch_compile",
+                    help="workers to run; with --update, the others' records are kept from the results file")
+    ap.add_argument("--update", action="store_true",
+                    help="re-run only --frameworks and merge them into the existing results file of --tag")
     ap.add_argument("--tag", help="results file name (default: cpu, or quick)")
     ap.add_argument("--no-readme", action="store_true", help="do not update benchmarks/README.md")
+    ap.add_argument("--render", action="store_true", help="only re-render the tables from the results file of --tag")
     args = ap.parse_args(argv)
+    if args.render:
+        out = ROOT / "benchmarks" / "results" / f"{args.tag or 'cpu'}.json"
+        section = render(json.loads(out.read_text()))
+        out.with_suffix(".md").write_text(section + "\n")
+        if not args.no_readme:
+            update_readme(ROOT / "benchmarks" / "README.md", section)
+        print(section)
+        return
     models = tuple(m for m in args.models.split(",") if m)
     unknown = set(models) - set(MODELS)
     if unknown:
@@ -206,10 +219,27 @@ def main(argv=None):
     if args.warmup is not None:
         kw["warmup"] = args.warmup
     settings = Settings.quick(**kw) if args.quick else Settings(**kw)
+    tag = args.tag or ("quick" if args.quick else "cpu")
+    out = ROOT / "benchmarks" / "results" / f"{tag}.json"
+    frameworks = [f for f in args.frameworks.split(",") if f]
+    if set(frameworks) - set(WORKERS):
+        ap.error(f"--frameworks: unknown {sorted(set(frameworks) - set(WORKERS))}; known: {','.join(WORKERS)}")
+    results, previous = {}, None
+    if args.update:
+        if not out.exists():
+            ap.error(f"--update: no results file {out} to update")
+        previous = json.loads(out.read_text())
+        settings = Settings(**{k: tuple(v) if isinstance(v, list) else v for k, v in previous["settings"].items()})
+        for fw, w in previous["workers"].items():
+            if fw not in frameworks:
+                results[fw] = {"info": w["info"], "records": [r[fw] | {k: r[k] for k in ("case", "model", "kind", "batch", "k", "t_pred")}
+                                                              for r in previous["rows"] if fw in r]}
     t0 = time.perf_counter()
-    results = {"jax": run_worker("jax", settings, []), "torch_eager": run_worker("torch_eager", settings, [])}
-    if args.compile_cases:
-        results["torch_compile"] = run_worker("torch_compile", settings, ["--cases", args.compile_cases])
+    for fw in frameworks:
+        if fw == "torch_compile" and not args.compile_cases:
+            continue
+        results[fw] = run_worker(fw, settings, ["--cases", args.compile_cases] if fw == "torch_compile" else [])
+    results = {fw: results[fw] for fw in WORKERS if fw in results}
     doc = {
         "date": datetime.datetime.now().isoformat(timespec="seconds"),
         "command": "python benchmarks/run.py " + " ".join(sys.argv[1:] if argv is None else argv),
@@ -219,8 +249,11 @@ def main(argv=None):
         "rows": merge(results),
     }
     doc["wall_s"] = time.perf_counter() - t0
-    tag = args.tag or ("quick" if args.quick else "cpu")
-    out = ROOT / "benchmarks" / "results" / f"{tag}.json"
+    if previous is not None:
+        doc["command"] = previous["command"] + f"; then `{doc['command']}`"
+        doc["wall_s"] += previous["wall_s"]
+        doc["updated"] = doc["date"]
+        doc["date"] = previous["date"]
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(doc, indent=1))
     section = render(doc)

@@ -1,6 +1,6 @@
 """Where the time goes: per-op profiles of benchmark cases, jaxmotion (XLA thunks) and PyTorch eager (ATen ops).
 
-    python benchmarks/profile.py --cases dlow/sample/b64/k50/t60,dlow/train_cvae/b64/t60
+    python benchmarks/op_profile.py --cases dlow/sample/b64/k50/t60,dlow/train_cvae/b64/t60
 
 jaxmotion: `jax.profiler.trace` with `--xla_cpu_enable_xprof_traceme`, every XLA:CPU thunk's wall
 time summed by name (matrix products run as `ynn_fusion` / `xnn_fusion` / `dot` thunks, often with
