@@ -96,7 +96,7 @@ def train(cfg: Config, prep, workdir: Path, resume: bool = False) -> dict:
 
 
 def restore(cfg: Config, prep, workdir: Path) -> dict:
-    """Returns the parameters saved by `train_all` in `workdir`."""
+    """Returns the parameters `train` saved in `workdir`."""
     ds = prep.dataset
     _, _, state = _cvae_state(cfg, ds)
     cvae_params = restore_params(workdir / "cvae", state).params
@@ -107,7 +107,7 @@ def restore(cfg: Config, prep, workdir: Path) -> dict:
     return {"cvae": cvae_params, "dlow": qs}
 
 
-def predictors(cfg: Config, ds: MotionDataset, params: dict, k: int) -> dict[str, Predictor]:
+def predictors(cfg: Config, ds: MotionDataset, params: dict, k: int) -> dict:
     """Returns jitted `(x, key) -> (b, K, t_pred, D)` samplers for zero-velocity, CVAE and DLow."""
     cvae = cvae_model(cfg, ds)
     out = {
