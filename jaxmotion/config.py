@@ -50,6 +50,7 @@ class Config:
     name: str = "dlow_synthetic"
     method: str = "dlow"  # a key of jaxmotion.experiment.METHODS
     dataset: str = "synthetic"  # "synthetic", or a path: BVH folder, Bandai-Namco-2 folder, H36M/HumanEva npz
+    data_options: dict = dataclasses.field(default_factory=dict)  # loader options, e.g. {"markers": "bandai"}
     seed: int = 0
     # The built-in job must finish in 10 minutes on 2 CPU cores, so it trains ~2k CVAE steps
     # where DLow trains ~39k. At that budget beta = 0.1 leaves the informative latent dimensions

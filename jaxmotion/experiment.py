@@ -21,7 +21,7 @@ import numpy as np
 
 from jaxmotion.config import Config, to_dict
 from jaxmotion.data.types import MotionDataset
-from jaxmotion.data.windows import TrainSampler, sequence_frames, test_windows
+from jaxmotion.data.windows import TrainSampler, canonicalise_windows, split_frames, test_windows
 
 Predictor = Callable[[jax.Array, jax.Array], jax.Array]  # (x (b, t_his, D), key) -> (b, K, t_pred, D)
 
@@ -37,15 +37,20 @@ def get_method(name: str):
 
 
 def load_data(cfg: Config, data: str | None = None) -> MotionDataset:
-    """Returns the dataset named by `data` (a path) or else by `cfg.dataset` ("synthetic" or a path)."""
+    """Returns the dataset named by `data` (a path) or else by `cfg.dataset` ("synthetic" or a path).
+
+    `cfg.data_options` go to the loader (e.g. `{"markers": "bandai"}`: Bandai-Namco-2 as markers).
+    """
     spec = data or cfg.dataset
     if spec == "synthetic":
         from jaxmotion.data.synthetic import make_synthetic
 
+        if cfg.data_options:
+            raise ValueError(f"the synthetic dataset takes no data_options, got {sorted(cfg.data_options)}")
         return make_synthetic(cfg.seed)
     from jaxmotion.data.datasets import load_dataset
 
-    return load_dataset(spec)
+    return load_dataset(spec, **dict(cfg.data_options))
 
 
 @dataclasses.dataclass
@@ -69,9 +74,16 @@ class Prepared:
 
 
 def prepare(ds: MotionDataset, max_test_windows: int | None = None) -> Prepared:
-    """Returns train sampler and test windows (PROTOCOL sec. 3: test stride t_his, random train starts)."""
-    sampler = TrainSampler(sequence_frames(ds.train), ds.t_total)
-    windows, seq_index, starts = test_windows(sequence_frames(ds.test), ds.t_his, ds.t_pred)
+    """Returns train sampler and test windows (PROTOCOL sec. 3: test stride t_his, random train starts).
+
+    Marker datasets' windows are canonicalised at their first frame (PROTOCOL sec. 4).
+    """
+    train, train_canon = split_frames(ds, "train")
+    sampler = TrainSampler(train, ds.t_total, train_canon)
+    test, test_canon = split_frames(ds, "test")
+    windows, seq_index, starts = test_windows(test, ds.t_his, ds.t_pred)
+    if test_canon is not None:
+        windows = canonicalise_windows(windows, np.stack([test_canon[i][s] for i, s in zip(seq_index, starts)]))
     keep = np.arange(len(windows))
     if max_test_windows is not None and len(windows) > max_test_windows:
         # Evenly spaced, so a quick evaluation still covers every test sequence.

@@ -21,6 +21,8 @@ import jax.scipy.special
 import numpy as np
 from jaxtyping import Array, Float
 
+from jaxmotion.body.markersets import LIMB_MARKER_PAIRS
+
 # Rigid body parts whose marker distances should not change (PROTOCOL sec. 2; MOJO Tab. 2).
 BODY_PARTS: dict[str, tuple[str, ...]] = {
     "head": ("LFHD", "RFHD", "RBHD", "LBHD"),
@@ -56,6 +58,9 @@ LIMB_BONES: dict[str, tuple[tuple[str, str], ...]] = {
         ("LeftUpLeg", "LeftLeg"), ("LeftLeg", "LeftFoot"),
         ("RightUpLeg", "RightLeg"), ("RightLeg", "RightFoot"),
     ),
+    # Marker data: two markers on the same limb bone (the `bandai` marker set attaches them so,
+    # `jaxmotion.body.markersets.LIMB_MARKER_PAIRS`); their distance is what a bone length is for joints.
+    "markers": LIMB_MARKER_PAIRS,
 }  # fmt: skip
 
 
@@ -177,7 +182,7 @@ def foot_skating_ratio(
     *,
     fps: float,
     up_axis: int = 2,
-    ground: float = 0.0,
+    ground: float | Float[Array, "..."] = 0.0,
     max_height: float = 0.05,
     min_speed: float = 0.075,
     heels: tuple[str, str] | None = None,
@@ -212,7 +217,9 @@ def window_realism(pred: Float[Array, "n k t d"], gt: Float[Array, "n t d"], ds)
     Point names are `ds.info["point_names"]` when given, else the skeleton's joints without the
     root (the root-relative frame layout). FSE always; `BDF` when limb joints are named;
     `deform_<part>` (mm) when MOJO's part markers are named; `foot_skating` only for global
-    frames (`ds.info["frames"] == "global"`, up axis `ds.info["up_axis"]`) with heel markers.
+    frames (`ds.info["frames"] == "global"`, up axis `ds.info["up_axis"]`) with heel markers; the
+    ground is `ds.info["ground"]` (default 0), or per window the lowest heel height of the true
+    future when that is `"future_heel_min"` (canonicalised marker windows, whose floor is unknown).
     """
     pred = jnp.asarray(pred, jnp.float32)
     names = tuple(ds.info.get("point_names") or ds.skeleton.names[1:])
@@ -229,7 +236,15 @@ def window_realism(pred: Float[Array, "n k t d"], gt: Float[Array, "n t d"], ds)
             pass
     if ds.info.get("frames") == "global":
         try:
-            r = foot_skating_ratio(pred, names, fps=ds.fps, up_axis=ds.info.get("up_axis", 2))
+            up = ds.info.get("up_axis", 2)
+            ground = ds.info.get("ground", 0.0)
+            if ground == "future_heel_min":
+                # The floor of a canonicalised window is unknown: take the lowest heel of the true
+                # future (in 2 s some foot is always down), so heel contact height is 0 there.
+                hi = name_indices(names, find_heels(names), "foot_skating_ratio")
+                g = points(jnp.asarray(gt, jnp.float32), names, "foot_skating_ratio")[..., hi, up]
+                ground = jnp.min(g, axis=(-2, -1))[:, None, None, None]
+            r = foot_skating_ratio(pred, names, fps=ds.fps, up_axis=up, ground=ground)
             out["foot_skating"] = np.asarray(jnp.mean(r, axis=-1))
         except ValueError:
             pass

@@ -1,10 +1,12 @@
 """Marker data for MOJO: Bandai-Namco-2 motion driving the skeleton body, and MOJO's canonical frame.
 
-    clips = bandai_marker_clips("../shared/data/bandai-namco-2")    # markers (T, 41, 3) per clip
+    ds = load_bandai_markers("../shared/data/bandai-namco-2")       # a MotionDataset of 41 markers
+    body, clips = bandai_marker_clips("../shared/data/bandai-namco-2")  # markers (T, 41, 3) per clip
     x = canonicalise(window_markers, window_joints, names)           # PROTOCOL sec. 4, per window
 
 Each clip's BVH rotations and root translation are the skeleton body's parameters (shape 0, the
 Bandai skeleton, `bandai` = CMU-41 markers), so every frame is a valid body by construction.
+The command line reaches the dataset through a config's `data_options={"markers": "bandai"}`.
 """
 
 from __future__ import annotations
@@ -44,6 +46,19 @@ def canonical_frame(joints0: np.ndarray, names: tuple[str, ...], up_axis: int = 
     return np.stack([x, y, up]), joints0[0].copy()
 
 
+def canonical_frames(joints: np.ndarray, names: tuple[str, ...], up_axis: int = 1) -> np.ndarray:
+    """Returns `(T, 4, 3)`: `canonical_frame` of every frame of `joints (T, J, 3)` (rows R, then origin)."""
+    roles = resolve_roles(names)
+    up = np.zeros(3)
+    up[up_axis] = 1.0
+    x = joints[:, roles["r_thigh"]] - joints[:, roles["l_thigh"]]
+    x = x - (x @ up)[:, None] * up
+    x /= np.linalg.norm(x, axis=-1, keepdims=True)
+    y = np.cross(up, x)
+    r = np.stack([x, y, np.broadcast_to(up, x.shape)], axis=1)
+    return np.concatenate([r, joints[:, None, 0]], axis=1).astype(np.float32)
+
+
 def canonicalise(markers: np.ndarray, joints: np.ndarray, names: tuple[str, ...], up_axis: int = 1) -> np.ndarray:
     """Returns `markers (T, M, 3)` in the canonical frame of the window's first frame (`joints (T, J, 3)`)."""
     r, o = canonical_frame(joints[0], names, up_axis)
@@ -61,13 +76,118 @@ def bandai_marker_clips(root: str | os.PathLike, styles: tuple[str, ...] | None 
     if not files:
         raise ValueError(f"{clip_dir}: no Bandai-Namco-2 clips")
     body = skeleton_body_from_bvh(read_bvh(files[0]), marker_set)
-    markers_of = jax.jit(jax.vmap(body.markers))
-    joints_of = jax.jit(jax.vmap(body.joints))
+    # Fixed-size chunks: one compilation for every clip length.
+    chunk = 2048
+    points_of = jax.jit(jax.vmap(lambda p: (body.markers(p), body.joints(p))))
     clips = []
     for f in files:
         m = _BANDAI_NAME.match(f.stem)
         if styles is not None and m["style"] not in styles:
             continue
         p = params_from_bvh(body, read_bvh(f))
-        clips.append(MarkerClip(f.stem, m["style"], m["content"], np.asarray(markers_of(p)), np.asarray(joints_of(p))))
+        n = p.transl.shape[0]
+        mk, jt = [], []
+        for s in range(0, n, chunk):
+            c = jax.tree.map(lambda a: a[s : s + chunk], p)
+            pad = chunk - c.transl.shape[0]
+            c = jax.tree.map(lambda a: np.concatenate([a, np.repeat(a[-1:], pad, 0)]) if pad else a, c)
+            a, b = points_of(c)
+            mk.append(np.asarray(a)[: chunk - pad])
+            jt.append(np.asarray(b)[: chunk - pad])
+        clips.append(MarkerClip(f.stem, m["style"], m["content"], np.concatenate(mk), np.concatenate(jt)))
     return body, clips
+
+
+# The stick figure drawn over CMU-41 markers (marker -> marker it hangs from); `origin` first.
+_DRAW_PARENT = {
+    "CLAV": "C7", "STRN": "CLAV", "T10": "C7", "RBAK": "T10",
+    "LFHD": "RFHD", "RFHD": "RBHD", "RBHD": "LBHD", "LBHD": "C7",
+    "RFWT": "STRN", "LFWT": "RFWT", "LBWT": "LFWT", "RBWT": "RFWT",
+}  # fmt: skip
+for _p in ("L", "R"):
+    _DRAW_PARENT.update({
+        f"{_p}SHO": "CLAV", f"{_p}UPA": f"{_p}SHO", f"{_p}ELB": f"{_p}UPA", f"{_p}FRM": f"{_p}ELB",
+        f"{_p}WRA": f"{_p}FRM", f"{_p}WRB": f"{_p}FRM", f"{_p}FIN": f"{_p}WRA", f"{_p}THI": f"{_p}FWT",
+        f"{_p}KNE": f"{_p}THI", f"{_p}SHN": f"{_p}KNE", f"{_p}ANK": f"{_p}SHN", f"{_p}HEE": f"{_p}ANK",
+        f"{_p}TOE": f"{_p}ANK", f"{_p}MT5": f"{_p}TOE",
+    })  # fmt: skip
+
+_CACHE_VERSION = 1
+
+
+def marker_skeleton(marker_names: tuple[str, ...]):
+    """Returns the dataset `Skeleton` of a marker set: `origin`, then the markers (parents draw sticks)."""
+    from jaxmotion.data.types import Skeleton
+
+    names = ("origin",) + tuple(marker_names)
+    index = {n: i for i, n in enumerate(names)}
+    return Skeleton(names, (-1,) + tuple(index.get(_DRAW_PARENT.get(n, ""), -1) for n in marker_names))
+
+
+def load_bandai_markers(root: str | os.PathLike, marker_set: str = "bandai", cache_dir: str | os.PathLike | None = None):
+    """Returns Bandai-Namco-2 as a marker `MotionDataset` for MOJO (PROTOCOL sec. 3 split, sec. 4 frames).
+
+    The skeleton body of the Bandai skeleton carries `marker_set` (default `bandai`: CMU-41 with
+    limb markers rigid per bone); each clip drives it, so every frame is a valid body. Same split,
+    rate and window lengths as `load_bandai` (30 fps, 15 -> 60, train styles active exhausted
+    feminine masculine, test normal, MM threshold 0.5). Frames are the global marker positions
+    (D = 3 M); windows are expressed in the canonical frame of their first frame (X left hip ->
+    right hip on the ground, Z up, Y forward, origin at the root joint). `info["body"]` is the body
+    (for recursive projection), `info["point_names"]` the marker names, `info["up_axis"]` 2. The
+    markers are computed once and cached as an npz beside the extracted clips.
+    """
+    from jaxmotion.data.datasets import BANDAI_TEST_STYLES, BANDAI_TRAIN_STYLES, default_cache_dir
+    from jaxmotion.data.types import MotionDataset, Sequence
+
+    styles = BANDAI_TRAIN_STYLES + BANDAI_TEST_STYLES
+    cache = Path(cache_dir or default_cache_dir()).expanduser().parent / f"bandai2_markers_{marker_set}_v{_CACHE_VERSION}.npz"
+    body = None
+    if cache.is_file():
+        z = np.load(cache, allow_pickle=False)
+        names, styl, content = list(z["names"]), list(z["styles"]), list(z["contents"])
+        splits = np.cumsum(z["lengths"])[:-1]
+        markers, canon = np.split(z["markers"], splits), np.split(z["canon"], splits)
+        from jaxmotion.body.skeleton import skeleton_body_from_bvh
+        from jaxmotion.data.bvh import read_bvh
+        from jaxmotion.data.datasets import _bandai_clip_dir
+
+        clip_dir = _bandai_clip_dir(Path(root).expanduser(), cache_dir)
+        body = skeleton_body_from_bvh(read_bvh(clip_dir / f"{names[0]}.bvh"), marker_set)
+    else:
+        body, clips = bandai_marker_clips(root, styles, marker_set)
+        if not clips:
+            raise ValueError(f"{root}: no Bandai-Namco-2 clip has a protocol style {styles}")
+        names, styl, content = [c.name for c in clips], [c.style for c in clips], [c.content for c in clips]
+        markers = [c.markers.astype(np.float32) for c in clips]
+        canon = [canonical_frames(c.joints, body.names, up_axis=1) for c in clips]
+        cache.parent.mkdir(parents=True, exist_ok=True)
+        tmp = cache.with_suffix(".tmp.npz")
+        np.savez(
+            tmp, names=np.array(names), styles=np.array(styl), contents=np.array(content),
+            lengths=np.array([len(m) for m in markers]), markers=np.concatenate(markers), canon=np.concatenate(canon),
+        )  # fmt: skip
+        tmp.replace(cache)
+    train, test = [], []
+    for n, s, c, mk, cn in zip(names, styl, content, markers, canon):
+        seq = Sequence(mk, 30.0, "unknown", c, name=n, canon=cn)
+        (test if s in BANDAI_TEST_STYLES else train).append(seq)
+    return MotionDataset(
+        name=f"bandai2_markers_{marker_set}",
+        skeleton=marker_skeleton(body.marker_names),
+        fps=30.0,
+        t_his=15,
+        t_pred=60,
+        mm_threshold=0.5,
+        train=train,
+        test=test,
+        info={
+            "source": str(root),
+            "frames": "global",
+            "up_axis": 2,
+            "ground": "future_heel_min",
+            "point_names": tuple(body.marker_names),
+            "marker_set": marker_set,
+            "body": body,
+            "cache": str(cache),
+        },
+    )

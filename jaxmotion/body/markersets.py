@@ -10,7 +10,11 @@ calibration (`fit.calibrate`) refines offsets and bone lengths for a real subjec
 Sets: `cmu41` (the CMU / MOJO "CMU 41" layout: C7 CLAV STRN T10 RBAK and 18 per side), `vicon53`
 (the 53 labels of `../shared/data/vicon-c3d`), `ssm2_67` (SSM2-style 67: vicon53 + 14), and
 `bandai` (cmu41 on the 21-joint Bandai-Namco-2 skeleton, which has no fingers or head top:
-those markers hang off the hand and head joints).
+those markers hang off the hand and head joints). The `bandai` set also attaches the elbow, wrist,
+knee and ankle markers to the bone they sit on anatomically (ELB on the humerus, WRA/WRB on the
+forearm, KNE on the femur, ANK on the shank; `SET_OVERRIDES`), at the same reference positions, so
+every limb bone carries two rigid markers (`LIMB_MARKER_PAIRS`) and bone deformation is measurable
+from markers alone. The other sets keep the generic attachments their C3D fits were made with.
 """
 
 from __future__ import annotations
@@ -126,6 +130,33 @@ MARKER_SETS: dict[str, tuple[str, ...]] = {
 }
 MARKER_SETS["ssm2_67"] = MARKER_SETS["vicon53"] + ("RBAK", "LBAK") + _both(("THI", "FRM", "FIN", "SHO", "WRA", "WRB"))
 MARKER_SETS["bandai"] = MARKER_SETS["cmu41"]
+
+# Per-set attachment changes (same reference position, another bone): set -> suffix -> spec.
+_BANDAI_LIMB = {
+    "ELB": _S("upperarm", "forearm", 1.0, -0.02, 0.04, 0.0),
+    "WRA": _S("forearm", "hand", 1.0, 0.03, 0.02, 0.0),
+    "WRB": _S("forearm", "hand", 1.0, -0.03, 0.02, 0.0),
+    "KNE": _S("thigh", "shin", 1.0, 0.0, 0.05, 0.0),
+    "ANK": _S("shin", "foot", 1.0, 0.0, 0.04, 0.0),
+}
+SET_OVERRIDES: dict[str, dict[str, MarkerSpec]] = {
+    "bandai": {p + k: _sided(p, v) for k, v in _BANDAI_LIMB.items() for p in ("L", "R")},
+}
+# Two markers rigid on each of the eight limb bones of the `bandai` set (upper arm, forearm,
+# thigh, shank per side): their distance is constant for any valid body.
+LIMB_MARKER_PAIRS = tuple(
+    (p + a, p + b) for p in ("L", "R") for a, b in (("UPA", "ELB"), ("FRM", "WRA"), ("THI", "KNE"), ("SHN", "ANK"))
+)
+
+
+def marker_spec(name: str, marker_set: str | None = None) -> MarkerSpec:
+    """Returns the attachment of marker `name` (with `marker_set`'s override, if any)."""
+    over = SET_OVERRIDES.get(marker_set or "", {})
+    if name in over:
+        return over[name]
+    if name not in MARKER_SPECS:
+        raise ValueError(f"marker {name!r} has no attachment in MARKER_SPECS")
+    return MARKER_SPECS[name]
 assert [len(MARKER_SETS[k]) for k in ("cmu41", "vicon53", "ssm2_67")] == [41, 53, 67]
 
 

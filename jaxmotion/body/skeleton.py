@@ -21,7 +21,7 @@ import numpy as np
 from flax import struct
 from jaxtyping import Array, Float
 
-from jaxmotion.body.markersets import MARKER_SETS, MARKER_SPECS, resolve_roles
+from jaxmotion.body.markersets import MARKER_SETS, marker_spec, resolve_roles
 from jaxmotion.body.params import BodyParams, zero_params
 from jaxmotion.body.rotation import axis_angle_to_matrix, matrix_to_axis_angle, matrix_to_rot6d, rot6d_to_matrix
 from jaxmotion.data.bvh import Bvh, euler_matrices
@@ -121,9 +121,11 @@ def body_frame(joints: np.ndarray, roles: dict[str, int]) -> np.ndarray:
 def attach_markers(body: SkeletonBody, marker_names: tuple[str, ...] | str) -> SkeletonBody:
     """Returns `body` with markers placed by `MARKER_SPECS` in its reference (zero-parameter) pose.
 
-    `marker_names` is a tuple of names or the name of a set in `MARKER_SETS`. Raises ValueError
+    `marker_names` is a tuple of names or the name of a set in `MARKER_SETS` (a set given by name
+    also applies its `SET_OVERRIDES` attachments). Raises ValueError
     naming the marker and the joint role when the skeleton has no joint for it.
     """
+    set_name = marker_names if isinstance(marker_names, str) else None
     if isinstance(marker_names, str):
         if marker_names not in MARKER_SETS:
             raise ValueError(f"unknown marker set {marker_names!r}; known: {sorted(MARKER_SETS)}")
@@ -136,9 +138,7 @@ def attach_markers(body: SkeletonBody, marker_names: tuple[str, ...] | str) -> S
     frame = body_frame(t, roles)
     joints, offsets = [], []
     for name in marker_names:
-        if name not in MARKER_SPECS:
-            raise ValueError(f"marker {name!r} has no attachment in MARKER_SPECS")
-        s = MARKER_SPECS[name]
+        s = marker_spec(name, set_name)
         for role in (s.role, s.to):
             if role is not None and role not in roles:
                 raise ValueError(f"marker {name!r} needs a {role!r} joint; skeleton joints are {body.names}")
@@ -225,11 +225,24 @@ def params_from_bvh(body: SkeletonBody, bvh: Bvh, frames=None, *, scale: float |
     n = local.shape[0]
     return BodyParams(
         transl=jnp.asarray(pos[:, 0], jnp.float32),
-        orient=matrix_to_rot6d(jnp.asarray(local[:, 0] @ ref[0].T, jnp.float32)),
+        orient=_bucketed(_rot6d_jit, local[:, 0] @ ref[0].T),
         shape=jnp.zeros((n, body.num_joints - 1), jnp.float32),
-        pose=jnp.asarray(np.asarray(matrix_to_axis_angle(jnp.asarray(rel[:, 1:]))), jnp.float32).reshape(n, -1),
+        pose=_bucketed(_axis_angle_jit, rel[:, 1:]).reshape(n, -1),
         hand=jnp.zeros((n, 0), jnp.float32),
     )
+
+
+_rot6d_jit = jax.jit(matrix_to_rot6d)
+_axis_angle_jit = jax.jit(matrix_to_axis_angle)
+
+
+def _bucketed(fn, a: np.ndarray, bucket: int = 512) -> jax.Array:
+    """Returns `fn(a)` (float32) computed on `a` padded to a multiple of `bucket` rows: clips of
+    every length then share a few compilations instead of one per length."""
+    n = a.shape[0]
+    pad = -n % bucket
+    a = np.concatenate([a, np.repeat(a[-1:], pad, axis=0)]) if pad else a
+    return fn(jnp.asarray(a, jnp.float32))[:n]
 
 
 def toy_skeleton(marker_set: tuple[str, ...] | str = "cmu41") -> SkeletonBody:

@@ -464,7 +464,8 @@ def load_dataset(spec: str | os.PathLike, **options) -> MotionDataset:
 
     - `*.npz`: Human3.6M if `positions_3d` has subject keys `S1`, `S9`, ..., HumanEva-I if it has
       `Train/S1`, `Validate/S1`, ...
-    - a folder with `bandai2_dev.tar.xz` or `dataset-2_*.bvh` clips: `load_bandai`.
+    - a folder with `bandai2_dev.tar.xz` or `dataset-2_*.bvh` clips: `load_bandai`; with the option
+      `markers="bandai"` (a marker set name), `jaxmotion.body.marker_data.load_bandai_markers`.
     - another folder with `.bvh` files: `load_bvh_folder`.
     """
     path = Path(spec).expanduser()
@@ -483,6 +484,11 @@ def load_dataset(spec: str | os.PathLike, **options) -> MotionDataset:
         )
     if path.is_dir():
         if (path / BANDAI_TARBALL).is_file() or any(path.glob("dataset-2_*.bvh")):
+            if "markers" in options:
+                from jaxmotion.body.marker_data import load_bandai_markers
+
+                options = dict(options)
+                return load_bandai_markers(path, options.pop("markers"), **options)
             return load_bandai(path, **options)
         if any(path.rglob("*.bvh")):
             return load_bvh_folder(path, **options)

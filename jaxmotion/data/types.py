@@ -25,13 +25,18 @@ class Skeleton:
 
 @dataclasses.dataclass
 class Sequence:
-    """One recording: global joint positions in metres, `(T, J, 3)`."""
+    """One recording: global joint (or marker) positions in metres, `(T, J, 3)`.
+
+    `canon` (marker datasets, PROTOCOL sec. 4) holds per frame t the canonical frame that a window
+    starting at t is expressed in: rows 0-2 the rotation R, row 3 the origin o (`p' = R (p - o)`).
+    """
 
     positions: np.ndarray
     fps: float
     subject: str
     action: str
     name: str = ""
+    canon: np.ndarray | None = None  # (T, 4, 3)
 
 
 @dataclasses.dataclass
@@ -39,7 +44,10 @@ class MotionDataset:
     """A dataset under the evaluation protocol (PROTOCOL sec. 3).
 
     `skeleton` describes the kept joints (root first); a frame vector drops the root, so
-    `dim == (skeleton.num_joints - 1) * 3`.
+    `dim == (skeleton.num_joints - 1) * 3`. Marker datasets (`info["frames"] == "global"`) keep
+    global positions, canonicalised per window (`Sequence.canon`): their skeleton is a point
+    `origin` (the canonical origin, dropped like a root) followed by the markers, whose parents
+    only draw a stick figure.
     """
 
     name: str

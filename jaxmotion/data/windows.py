@@ -52,15 +52,32 @@ def test_windows(frames: list[np.ndarray], t_his: int, t_pred: int, step: int | 
     return np.concatenate(out), np.concatenate(seq_idx), np.concatenate(starts)
 
 
+def canonicalise_windows(windows: np.ndarray, canon: np.ndarray) -> np.ndarray:
+    """Returns `windows (N, T, M*3)` of global points expressed in their canonical frames `canon (N, 4, 3)`.
+
+    `canon[i]` is the frame of window i's first frame (`Sequence.canon` at its start): `R (p - o)`.
+    """
+    n, t, d = windows.shape
+    p = windows.reshape(n, t, d // 3, 3) - canon[:, None, None, 3]
+    return np.einsum("ntmj,nij->ntmi", p, canon[:, :3]).reshape(n, t, d).astype(np.float32)
+
+
 class TrainSampler:
     """Draws training windows at random start frames (PROTOCOL sec. 3).
 
     A sequence is chosen with probability proportional to its number of valid starts, so every
     valid window is equally likely (DLow picks subject then action uniformly; we document this
     deviation because it weights long sequences fairly). Uses a numpy Generator seeded explicitly.
+    With `canon` (one `(T, 4, 3)` array per sequence, marker data) each window is expressed in the
+    canonical frame of its first frame.
     """
 
-    def __init__(self, frames: list[np.ndarray], t_total: int):
+    def __init__(self, frames: list[np.ndarray], t_total: int, canon: list[np.ndarray] | None = None):
+        if canon is not None:
+            if len(canon) != len(frames):
+                raise ValueError(f"TrainSampler: {len(canon)} canonical-frame arrays for {len(frames)} sequences")
+            canon = [c for f, c in zip(frames, canon) if f.shape[0] >= t_total]
+        self.canon = canon
         self.frames = [f for f in frames if f.shape[0] >= t_total]
         if not self.frames:
             raise ValueError(f"TrainSampler: no sequence has at least t_total = {t_total} frames")
@@ -73,16 +90,38 @@ class TrainSampler:
         """Returns `(batch_size, t_total, D)` float32 windows."""
         seqs = rng.choice(len(self.frames), size=batch_size, p=self.p)
         out = np.empty((batch_size, self.t_total, self.frames[0].shape[1]), np.float32)
+        canon = np.empty((batch_size, 4, 3)) if self.canon is not None else None
         for b, s in enumerate(seqs):
             f = self.frames[s]
             start = rng.integers(0, f.shape[0] - self.t_total + 1)
             out[b] = f[start : start + self.t_total]
-        return out
+            if canon is not None:
+                canon[b] = self.canon[s][start]
+        return out if canon is None else canonicalise_windows(out, canon)
 
 
 def sequence_frames(seqs: list[Sequence], root: int = 0) -> list[np.ndarray]:
     """Returns the frame vectors of each sequence (see `to_frames`)."""
     return [to_frames(s.positions, root) for s in seqs]
+
+
+def split_frames(ds, split: str) -> tuple[list[np.ndarray], list[np.ndarray] | None]:
+    """Returns `(frames, canon)` of `ds.train` or `ds.test` (`split`): root-relative frame vectors
+    for joint datasets (canon None); for marker datasets (`ds.info["frames"] == "global"`) the
+    flattened global points and each sequence's `canon`, to canonicalise windows at their start."""
+    seqs = getattr(ds, split)
+    if ds.info.get("frames") != "global":
+        return sequence_frames(seqs), None
+    frames, canon = [], []
+    for s in seqs:
+        p = np.asarray(s.positions, np.float32)
+        if not np.all(np.isfinite(p)):
+            raise ValueError(f"{ds.name}: sequence {s.name!r} has NaN or inf positions")
+        if s.canon is None or s.canon.shape != (p.shape[0], 4, 3):
+            raise ValueError(f"{ds.name}: marker sequence {s.name!r} needs `canon` of shape ({p.shape[0]}, 4, 3)")
+        frames.append(p.reshape(p.shape[0], -1))
+        canon.append(s.canon)
+    return frames, canon
 
 
 # These are library functions, not tests: keep pytest from collecting them where they are imported.

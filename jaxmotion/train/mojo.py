@@ -3,7 +3,8 @@
 Settings live in `cfg.mojo` (a `jaxmotion.models.mojo.MojoConfig`; the default when None). Stages
 write `workdir/cvae/` and `workdir/q_k{K}/`. Predictors: `"mojo"` (the config's sampler: DLow on the
 lowest L bands, N(0, I) above), and as asked by `MojoConfig.baselines` `"mojo_prior"` (N(0, I) in
-every band) and `"zero_velocity"`. `extra_metrics` adds MOJO's realism metrics to evaluation.
+every band), `"zero_velocity"` and `"mojo_proj"` (MOJO with recursive projection onto the
+dataset's body, `projected_sampler`). `extra_metrics` adds MOJO's realism metrics to evaluation.
 """
 
 from __future__ import annotations
@@ -115,7 +116,47 @@ def predictors(cfg: Config, ds: MotionDataset, params: dict, k: int) -> dict:
     if k in params["q"]:
         q = mojo.q_model(m, ds.t_pred, k)
         out["mojo"] = jax.jit(lambda x, key: mojo.sample_mojo(model, params["cvae"], q, params["q"][k], x, key))
+        if "mojo_proj" in m.baselines:
+            if "body" not in ds.info:
+                raise ValueError(
+                    f"mojo_proj needs a marker dataset with a body model (info['body']); {ds.name} has none "
+                    "(use data_options={'markers': 'bandai'} for Bandai-Namco-2 markers)"
+                )
+            out["mojo_proj"] = projected_sampler(model, params["cvae"], q, params["q"][k], ds.info["body"], ds.t_his, m.proj_max_steps)
     return out
+
+
+def projected_sampler(model: mojo.MojoCVAE, cvae_params, q: mojo.MojoQ, q_params, body, t_his: int, max_steps: int = 10):
+    """Returns a jitted `(x, key) -> (b, K, t_pred, D)` MOJO sampler with recursive projection (MOJO Sec. 3.4).
+
+    Per window: the body is fitted to the observed markers (shape over all observed frames, then
+    fixed); then one `lax.scan` runs decoder step -> Levenberg-Marquardt fit of the body to the
+    predicted markers (warm start: the previous frame's fit) -> the fitted markers fed back, for
+    the windows' K samples at once (one batch of b * K vmapped fits; nesting a vmap over windows
+    around one over samples trips an XLA:CPU verifier error in jax 0.10.2). The latents are the ones
+    `sample_mojo` draws for the same key, so "mojo" and "mojo_proj" differ only by the projection.
+    Returns the fitted markers: every predicted frame is a valid body of the observed shape.
+    """
+    from jaxmotion.body.projection import body_fit_fn, init_from_observed, recursive_projection
+
+    dparams = mojo.decoder_params(model, cvae_params)
+    fit = body_fit_fn(body, stages=("global", "body", "hands"), max_steps=max_steps)
+    m = body.num_markers
+
+    def sample(x, key):
+        if x.shape[-1] != 3 * m:
+            raise ValueError(f"mojo_proj: frames have {x.shape[-1]} numbers, the body has {m} markers ({3 * m})")
+        z, _, _ = mojo.q_latents(model, q, q_params, x, key)
+        b, k = z.shape[:2]
+        # Windows and samples share one batch axis (b * K): one vmap level over the fits.
+        init = jax.vmap(lambda xi: init_from_observed(body, xi.reshape(t_his, m, 3)))(x)
+        init_bk = jax.tree.map(lambda a: jnp.repeat(a, k, axis=0), init)
+        x_bk = jnp.repeat(x, k, axis=0)
+        carry0, inputs = mojo.decode_inputs(dparams, x_bk, z.reshape((b * k,) + z.shape[2:]))
+        out = recursive_projection(lambda c, i: mojo.decode_step(dparams, c, i), fit, carry0, inputs, init_bk)
+        return jnp.swapaxes(out.markers, 0, 1).reshape(b, k, -1, 3 * m)
+
+    return jax.jit(sample)
 
 
 def extra_metrics(ds: MotionDataset, pred: np.ndarray, gt: np.ndarray) -> dict[str, np.ndarray]:
