@@ -18,7 +18,6 @@ import time
 from pathlib import Path
 
 import jax
-import numpy as np
 
 from jaxmotion import experiment, metrics
 from jaxmotion.config import load_config
