@@ -19,20 +19,16 @@ import argparse
 import importlib.util
 import json
 import os
-import sys
 import time
 from pathlib import Path
 
-# Run as a script, this folder is sys.path[0], and benchmarks/profile.py would shadow the standard
-# library's `profile` (imported by cProfile inside torch and jax).
 _HERE = Path(__file__).resolve().parent
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxmotion.body.fit import LAMBDA_POSE, eq2_residuals, fit_markers
+from jaxmotion.body.fit import LAMBDA_POSE, default_solver, eq2_residuals, fit_markers
 from jaxmotion.body.projection import recursive_projection
 
 K, T = 50, 45
@@ -79,6 +75,7 @@ def main() -> None:
     ap.add_argument("--data", default=str(Path(__file__).resolve().parents[2] / "shared/data/bandai-namco-2"))
     ap.add_argument("--noise", type=float, default=0.01, help="marker noise std (m)")
     ap.add_argument("--max-steps", type=int, default=20, help="LM steps per stage")
+    ap.add_argument("--atol", type=float, default=None, help="LM step tolerance (default: fit.default_solver's)")
     ap.add_argument("--json", default=None)
     ap.add_argument("--k", type=int, default=K, help="samples (smoke tests only; the benchmark is K = 50)")
     ap.add_argument("--t", type=int, default=T, help="frames (smoke tests only; the benchmark is 45)")
@@ -99,8 +96,12 @@ def main() -> None:
     m = body.num_markers
 
     # ---------------- jaxmotion: scan over frames of LM fits, vmapped over K, one jit.
+    solver = default_solver() if args.atol is None else default_solver(atol=args.atol)
+
     def fit(t, p):
-        return fit_markers(body, t, p, stages=("global", "body", "hands"), max_steps=args.max_steps, align=False)
+        return fit_markers(
+            body, t, p, stages=("global", "body", "hands"), max_steps=args.max_steps, align=False, solver=solver
+        )
 
     def project(targets_k, init_k):
         step = lambda carry, frame: (carry, frame.reshape(-1))  # noqa: E731  the decoder stand-in
@@ -164,7 +165,7 @@ def main() -> None:
         return float(np.mean(sum(np.sum(np.asarray(x) ** 2, axis=tuple(range(2, x.ndim))) for x in r)))
 
     res = {
-        "K": K, "T": T, "markers": m, "joints": body.num_joints, "targets": source, "noise_m": args.noise,
+        "K": K, "T": T, "max_steps": args.max_steps, "atol": solver.atol if hasattr(solver, "atol") else None, "markers": m, "joints": body.num_joints, "targets": source, "noise_m": args.noise,
         "jax": {**stats(jx_markers, jx_time), "compile_s": first - jx_time},
         "torch_adam": stats(th_markers, th_time),
         "jax_eq2_mean": objective(jx_params),

@@ -5,12 +5,7 @@
 
 from __future__ import annotations
 
-import sys
 import time
-from pathlib import Path
-
-# benchmarks/profile.py would shadow the standard library's `profile` when this folder is sys.path[0].
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 
 import jax
 import jax.numpy as jnp

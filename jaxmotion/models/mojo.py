@@ -198,28 +198,29 @@ class MojoCVAE(nn.Module):
     def decode(self, x: Float[Array, "b t_his d"], z: Float[Array, "b c z"], h_x=None) -> Float[Array, "b t_pred d"]:
         """Returns the decoded future `(batch, horizon, dim)` for band latents `z` (pass `h_x` to reuse it).
 
-        Computes exactly `decode_step` `horizon` times, with the inputs' share of the GRU input
-        gates that does not depend on the previous frame computed outside the time loop: `h_x`'s
-        once, `z_t`'s for all steps in one matrix product (as DLow's decoder does).
+        Computes exactly `decode_step` `horizon` times, with `h_x`'s share of the GRU input gates,
+        `h_x @ W_ih[:nh]`, computed once instead of at every step (it does not change over time).
+        `z_t`'s share stays in the loop: precomputing it for all steps materialises a
+        `(t_pred, b, 3 nh)` array per sample, which measured slower at batch 64 x K = 50 on CPU.
         """
         carry, inputs = self.decode_init(x, z, h_x)
         if self.is_initializing():
             self.decode_step(carry, jax.tree.map(lambda a: a[0], inputs))  # creates the decoder's parameters
         w = self.d_cell.variables["params"]
-        nh, nz = inputs.h_x.shape[-1], inputs.z_t.shape[-1]
-        w_ih = w["weight_ih"]
-        gi = (inputs.h_x[0] @ w_ih[:nh] + w["bias_ih"])[None] + inputs.z_t @ w_ih[nh : nh + nz]  # (t, b, 3 nh)
-        w_y = w_ih[nh + nz :]
+        nh = inputs.h_x.shape[-1]
+        gi_h = inputs.h_x[0] @ w["weight_ih"][:nh] + w["bias_ih"]  # (b, 3 nh)
+        w_zy = w["weight_ih"][nh:]
 
-        def step(mdl, c, gi_t):
-            h = gru_update(gi_t + c.y_prev @ w_y, c.h @ w["weight_hh"] + w["bias_hh"], c.h)
+        def step(mdl, c, z_t):
+            gi = gi_h + jnp.concatenate([z_t, c.y_prev], axis=-1) @ w_zy
+            h = gru_update(gi, c.h @ w["weight_hh"] + w["bias_hh"], c.h)
             y = mdl.d_out(mdl.d_mlp(h))
             if self.residual:
                 y = y + c.y_prev
             return DecodeCarry(h, y), y
 
         scan = nn.scan(step, variable_broadcast="params", split_rngs={"params": False}, length=self.horizon, out_axes=1)
-        _, ys = scan(self, carry, gi)
+        _, ys = scan(self, carry, inputs.z_t)
         return ys
 
     def __call__(self, x, y, key=None):
