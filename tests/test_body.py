@@ -220,3 +220,32 @@ def test_canonical_frame_undoes_heading_and_position():
     assert m["RFWT"][0] > 0.1 > -0.1 > m["LFWT"][0]  # X: left hip -> right hip
     assert m["STRN"][1] > 0 > m["T10"][1]  # Y forward
     assert m["C7"][2] > 0.3  # Z up, origin at the root
+
+
+def test_analytic_marker_jacobian_equals_autodiff():
+    """`SkeletonBody.markers` has a hand-written JVP (what LM fits spend their time on): it must agree
+    with plain autodiff for every parameter, the marker offsets and the skeleton, forward and reverse."""
+    from jaxmotion.body.skeleton import toy_skeleton
+
+    body = toy_skeleton("bandai")
+    k = jax.random.split(jax.random.key(3), 12)
+    p = body.zero_params()
+    p = p._replace(
+        transl=p.transl + jax.random.normal(k[0], (3,)), orient=p.orient + 0.3 * jax.random.normal(k[1], (6,)),
+        shape=0.1 * jax.random.normal(k[2], p.shape.shape), pose=0.6 * jax.random.normal(k[3], p.pose.shape),
+    )  # fmt: skip
+    tp = jax.tree.map(lambda a, kk: jax.random.normal(kk, a.shape), p, type(p)(*k[4:9]))
+    tb = body.replace(
+        offsets=jax.random.normal(k[10], body.offsets.shape), ref_rot=jax.random.normal(k[11], body.ref_rot.shape),
+        marker_offsets=jax.random.normal(k[9], body.marker_offsets.shape),
+    )  # fmt: skip
+    for tangent_body in (tb, jax.tree.map(jnp.zeros_like, tb)):
+        y1, t1 = jax.jvp(lambda b, q: b.markers(q), (body, p), (tangent_body, tp))
+        y2, t2 = jax.jvp(lambda b, q: b.markers_autodiff(q), (body, p), (tangent_body, tp))
+        np.testing.assert_array_equal(y1, y2)
+        np.testing.assert_allclose(t1, t2, atol=2e-5 * float(jnp.abs(t2).max()))
+    for pose in (p.pose, jnp.zeros_like(p.pose)):  # the small-angle branch of J_r at zero
+        f1 = lambda q: body.markers(p._replace(pose=q))  # noqa: E731
+        f2 = lambda q: body.markers_autodiff(p._replace(pose=q))  # noqa: E731
+        np.testing.assert_allclose(jax.jacfwd(f1)(pose), jax.jacfwd(f2)(pose), atol=1e-5)
+        np.testing.assert_allclose(jax.jacrev(f1)(pose), jax.jacrev(f2)(pose), atol=1e-5)
