@@ -37,7 +37,7 @@ def main() -> None:
     ap.add_argument("--config", default=str(ROOT / "experiments/configs/mojo_bandai_markers.py"))
     ap.add_argument("--data", default=None, help="Bandai-Namco-2 folder (default: the config's)")
     ap.add_argument("--workdir", required=True, help="where the config's training wrote its checkpoints")
-    ap.add_argument("--windows", type=int, default=32, help="evenly spaced test windows")
+    ap.add_argument("--windows", type=int, default=128, help="evenly spaced test windows")
     ap.add_argument("--batch", type=int, default=16, help="windows per jitted call")
     ap.add_argument("--max-steps", type=int, default=None, help="LM steps per stage (default: the config's)")
     ap.add_argument("--out", default=str(ROOT / "experiments/results/mojo_projection_bandai"))

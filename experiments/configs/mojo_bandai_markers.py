@@ -1,14 +1,14 @@
 # jaxmotion train --config experiments/configs/mojo_bandai_markers.py --data ../shared/data/bandai-namco-2 --workdir runs/mojo_bandai_markers
 # jaxmotion eval  --config experiments/configs/mojo_bandai_markers.py --data ../shared/data/bandai-namco-2 --workdir runs/mojo_bandai_markers
-# python experiments/mojo_projection_table.py --workdir runs/mojo_bandai_markers   (with vs without recursive projection)
+# python experiments/mojo_projection_table.py --workdir runs/mojo_bandai_markers --windows 128   (with vs without projection)
 # Shared Bandai budget: CVAE 2000 steps x 64, per-band DLow 400 steps x 16 with K = 50.
-# Runtime: train 10.3 min, eval 3.7 min, projection table 8.7 min (2 CPU cores). Result (K = 50, 1,609 windows,
+# Runtime: train 10.3 min, eval 3.7 min, projection table (128 windows) 10.6 min (2 CPU cores). Result (K = 50, 1,609 windows,
 # distances over the 123-number frame):
 #   mojo        APD 27.27 ADE 0.624 FDE 0.951 MMADE 0.690 MMFDE 0.993 BDF 0.167 m foot skating 0.448
 #   mojo_prior  APD  7.72 ADE 1.034 FDE 1.949 MMADE 1.074 MMFDE 1.954 BDF 0.128 m
 #   zero_vel.   APD  0    ADE 4.102 FDE 7.796
-# 32 windows, same latents: mojo BDF 0.163 m, head/lower torso 153/141 mm; mojo_proj BDF 3e-7 m, 0/0 mm,
-# APD 26.3 -> 19.3, ADE 0.592 -> 0.646 (experiments/README.md, "MOJO with recursive projection").
+# 128 windows, same latents: mojo BDF 0.165 m, head/lower torso 154/142 mm; mojo_proj BDF 3e-7 m, 0/0 mm,
+# APD 26.9 -> 20.0, ADE 0.600 -> 0.665 (experiments/README.md, "MOJO with recursive projection").
 """MOJO on Bandai-Namco-2 as body-surface markers: the Bandai skeleton body carrying the `bandai`
 (CMU-41) markers, driven by every clip (`jaxmotion.body.marker_data.load_bandai_markers`); global
 marker positions in the canonical frame of each window's first frame (PROTOCOL sec. 4), D = 123.
