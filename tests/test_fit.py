@@ -86,3 +86,24 @@ def test_bad_target_shape_is_a_clear_error():
 
     with pytest.raises(ValueError, match="targets"):
         fit_markers(BODY, jnp.zeros((5, 3)), BODY.zero_params())
+
+
+def test_calibrate_recovers_a_subjects_bones_and_marker_placement():
+    """A subject whose bones are ~8% off and whose markers sit ~1 cm (per axis) from the marker set's
+    guesses: calibration on 16 frames cuts the per-frame fit residual to under a third (measured:
+    20.4 -> 5.9 mm with 4 rounds; the regularised offsets and bone scales are only partly identifiable
+    from 16 frames) and moves the bone scales towards the subject's (error 0.072 -> 0.048)."""
+    from jaxmotion.body.fit import calibrate
+
+    k = jax.random.split(jax.random.key(5), 3)
+    subject = BODY.replace(marker_offsets=BODY.marker_offsets + 0.01 * jax.random.normal(k[0], BODY.marker_offsets.shape))
+    shape = 0.08 * jax.random.normal(k[1], BODY.zero_params().shape.shape)
+    frames = [random_params(300 + i, pose_std=0.4)._replace(shape=shape) for i in range(16)]
+    params = jax.tree.map(lambda *a: jnp.stack(a), *frames)
+    targets = jax.vmap(subject.markers)(params)
+    fit_generic = jax.vmap(lambda t: fit_markers(BODY, t, BODY.zero_params(), max_steps=30))(targets)
+    cal = calibrate(BODY, targets, rounds=4)
+    before, after = float(fit_generic.residual.mean()), float(cal.fits.residual.mean())
+    assert before > 1e-2 and after < 0.35 * before, (before, after)
+    # The calibrated bone scales move towards the subject's.
+    assert float(jnp.abs(cal.shape - shape).mean()) < 0.8 * float(jnp.abs(shape).mean())
