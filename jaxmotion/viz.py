@@ -61,11 +61,14 @@ def plot_futures(
     fig = plt.figure(figsize=(15, 2.6 * (n_rows + 3)))
     gs = fig.add_gridspec(n_rows + 3, 3, height_ratios=[1.0, 1.4] + [1.0] * (n_rows + 1))
 
+    def centred(pose):  # side by side: each end pose at its own horizontal centre (global data drifts)
+        return pose - np.where(np.arange(3) == across, pose[:, across].mean(), 0.0)
+
     ax = fig.add_subplot(gs[0, :])
-    _draw(ax, gj[-1], parents, across, up, color="k", lw=2)
+    _draw(ax, centred(gj[-1]), parents, across, up, color="k", lw=2)
     ax.text(0, np.max(gj[-1, :, up]) + 0.12, "truth", ha="center", fontsize=8)
     for i in range(min(n_end, k)):
-        _draw(ax, pj[i, -1], parents, across, up, dx=(i + 1.3) * step, color=colors[i], lw=2)
+        _draw(ax, centred(pj[i, -1]), parents, across, up, dx=(i + 1.3) * step, color=colors[i], lw=2)
         ax.text((i + 1.3) * step, np.max(gj[-1, :, up]) + 0.12, f"sample {i}", ha="center", fontsize=8)
     ax.set_title(f"end poses (frame +{t_pred}) of the true future and of {min(n_end, k)} of the {k} samples", fontsize=9)
     ax.set_aspect("equal")
