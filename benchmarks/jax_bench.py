@@ -22,7 +22,7 @@ import optax
 
 from benchmarks.harness import Case, PeakRSS, Settings, measure, parents_for, plan
 from jaxmotion.models import divsamp, dlow, mojo
-from jaxmotion.train.divsamp import bn_optimizer, make_bn_train_step
+from jaxmotion.train.loop import bn_optimizer, make_bn_train_step
 from jaxmotion.train.loop import create_state, make_train_step
 
 

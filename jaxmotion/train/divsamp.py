@@ -5,7 +5,7 @@ Method module interface: `train`, `restore`, `predictors` (see jaxmotion/train/d
 BatchNorm statistics: each stage's `TrainState.params` is the full Flax variable dict
 `{"params": ..., "batch_stats": ...}`, so checkpoints and resume carry the running averages with
 the weights. The optimiser only touches `"params"` (`optax.multi_transform` with `set_to_zero` on
-`"batch_stats"`, which therefore holds no Adam moments), and the train step (`make_bn_train_step`)
+`"batch_stats"`, which therefore holds no Adam moments), and the train step (`loop.make_bn_train_step`)
 writes the statistics returned by the loss (`mutable=["batch_stats"]`) into the new state. In the
 sampler stage the CVAE's variables, statistics included, are the loop's `frozen` input and the
 decoder runs in evaluation mode (running averages), as the release's `model_t1.eval()`.
@@ -25,36 +25,14 @@ from jaxmotion.data.types import MotionDataset
 from jaxmotion.models import divsamp
 from jaxmotion.models.divsamp import DivSampConfig
 from jaxmotion.train.dlow import zero_velocity
-from jaxmotion.train.loop import TrainState, create_state, fit, lr_schedule, restore_params
+from jaxmotion.train.loop import bn_optimizer, create_state, fit, lr_schedule, make_bn_train_step, restore_params  # noqa: E501
+
+# `bn_optimizer` and `make_bn_train_step` live in train/loop.py (any BatchNorm model); importable from here too.
 
 
 def get_divsamp_config(cfg: Config) -> DivSampConfig:
     """Returns the checked `cfg.divsamp` (the defaults when it is None)."""
     return divsamp.check_config(cfg.divsamp if cfg.divsamp is not None else DivSampConfig())
-
-
-def bn_optimizer(inner: optax.GradientTransformation) -> optax.GradientTransformation:
-    """Returns `inner` on the `"params"` collection and a zero update on `"batch_stats"`."""
-    labels = lambda v: {col: jax.tree.map(lambda _: "train" if col == "params" else "stats", sub) for col, sub in v.items()}
-    return optax.multi_transform({"train": inner, "stats": optax.set_to_zero()}, labels)
-
-
-def make_bn_train_step(loss_fn, tx: optax.GradientTransformation):
-    """Returns `train_step(state, batch, key) -> (state, metrics)` for a model with BatchNorm.
-
-    `loss_fn(variables, frozen, batch, key) -> (loss, (metrics, new_batch_stats))`; `state.params`
-    is the variable dict. As `loop.make_train_step`, plus writing the new statistics.
-    """
-
-    def train_step(state: TrainState, batch, key):
-        grad_fn = jax.value_and_grad(loss_fn, has_aux=True)
-        (loss, (metrics, stats)), grads = grad_fn(state.params, state.frozen, batch, key)
-        updates, opt_state = tx.update(grads, state.opt_state, state.params)
-        params = dict(optax.apply_updates(state.params, updates), batch_stats=stats)
-        metrics = dict(metrics, loss=loss, grad_norm=optax.tree.norm(grads["params"]))
-        return state.replace(step=state.step + 1, params=params, opt_state=opt_state), metrics
-
-    return train_step
 
 
 def _dummy_nodes(ds: MotionDataset, d: DivSampConfig):

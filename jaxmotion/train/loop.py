@@ -63,6 +63,34 @@ def make_train_step(loss_fn: LossFn, tx: optax.GradientTransformation):
     return train_step
 
 
+# Models with BatchNorm (DivSamp's GCNs, any other): `TrainState.params` is the full variable
+# dict `{"params": ..., "batch_stats": ...}`; the optimiser touches only "params".
+
+
+def bn_optimizer(inner: optax.GradientTransformation) -> optax.GradientTransformation:
+    """Returns `inner` on the `"params"` collection and a zero update on `"batch_stats"`."""
+    labels = lambda v: {col: jax.tree.map(lambda _: "train" if col == "params" else "stats", sub) for col, sub in v.items()}
+    return optax.multi_transform({"train": inner, "stats": optax.set_to_zero()}, labels)
+
+
+def make_bn_train_step(loss_fn, tx: optax.GradientTransformation):
+    """Returns `train_step(state, batch, key) -> (state, metrics)` for a model with BatchNorm.
+
+    `loss_fn(variables, frozen, batch, key) -> (loss, (metrics, new_batch_stats))`; `state.params`
+    is the variable dict. As `loop.make_train_step`, plus writing the new statistics.
+    """
+
+    def train_step(state: TrainState, batch, key):
+        grad_fn = jax.value_and_grad(loss_fn, has_aux=True)
+        (loss, (metrics, stats)), grads = grad_fn(state.params, state.frozen, batch, key)
+        updates, opt_state = tx.update(grads, state.opt_state, state.params)
+        params = dict(optax.apply_updates(state.params, updates), batch_stats=stats)
+        metrics = dict(metrics, loss=loss, grad_norm=optax.tree.norm(grads["params"]))
+        return state.replace(step=state.step + 1, params=params, opt_state=opt_state), metrics
+
+    return train_step
+
+
 def data_mesh() -> Mesh:
     """Returns a one-axis mesh named "data" over all local devices."""
     return Mesh(np.array(jax.devices()), ("data",))
