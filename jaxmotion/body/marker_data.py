@@ -19,6 +19,7 @@ import jax
 import numpy as np
 
 from jaxmotion.body.markersets import resolve_roles
+from jaxmotion.data.windows import canonicalise_windows
 
 
 class MarkerClip(NamedTuple):
@@ -29,25 +30,13 @@ class MarkerClip(NamedTuple):
     joints: np.ndarray  # (T, J, 3)
 
 
-def canonical_frame(joints0: np.ndarray, names: tuple[str, ...], up_axis: int = 1) -> tuple[np.ndarray, np.ndarray]:
-    """Returns `(R (3, 3), origin (3,))` of MOJO's canonical frame for a first frame's joints.
+def canonical_frames(joints: np.ndarray, names: tuple[str, ...], up_axis: int = 1) -> np.ndarray:
+    """Returns `(T, 4, 3)`: MOJO's canonical frame at every frame of `joints (T, J, 3)`: rows R, then origin o.
 
     PROTOCOL sec. 4: X from the left hip to the right hip projected to the ground, Z up (the data's
-    `up_axis`), Y forward (Z x X), origin at the root (global translation) of the first frame.
-    New coordinates are `R @ (p - origin)`.
+    `up_axis`), Y forward (Z x X), origin at the root (global translation). New coordinates of a
+    point p are `R @ (p - o)` (`jaxmotion.data.windows.canonicalise_windows`).
     """
-    roles = resolve_roles(names)
-    up = np.zeros(3)
-    up[up_axis] = 1.0
-    x = joints0[roles["r_thigh"]] - joints0[roles["l_thigh"]]
-    x = x - (x @ up) * up
-    x /= np.linalg.norm(x)
-    y = np.cross(up, x)
-    return np.stack([x, y, up]), joints0[0].copy()
-
-
-def canonical_frames(joints: np.ndarray, names: tuple[str, ...], up_axis: int = 1) -> np.ndarray:
-    """Returns `(T, 4, 3)`: `canonical_frame` of every frame of `joints (T, J, 3)` (rows R, then origin)."""
     roles = resolve_roles(names)
     up = np.zeros(3)
     up[up_axis] = 1.0
@@ -61,17 +50,22 @@ def canonical_frames(joints: np.ndarray, names: tuple[str, ...], up_axis: int = 
 
 def canonicalise(markers: np.ndarray, joints: np.ndarray, names: tuple[str, ...], up_axis: int = 1) -> np.ndarray:
     """Returns `markers (T, M, 3)` in the canonical frame of the window's first frame (`joints (T, J, 3)`)."""
-    r, o = canonical_frame(joints[0], names, up_axis)
-    return (markers - o) @ r.T
+    t, m = markers.shape[:2]
+    canon = canonical_frames(joints[:1], names, up_axis)
+    return canonicalise_windows(markers.reshape(1, t, 3 * m), canon)[0].reshape(t, m, 3)
 
 
-def bandai_marker_clips(root: str | os.PathLike, styles: tuple[str, ...] | None = None, marker_set: str = "bandai"):
-    """Returns `(body, [MarkerClip])`: every Bandai-Namco-2 clip (of `styles`) as body markers."""
+def bandai_marker_clips(
+    root: str | os.PathLike, styles: tuple[str, ...] | None = None, marker_set: str = "bandai",
+    cache_dir: str | os.PathLike | None = None,
+):  # fmt: skip
+    """Returns `(body, [MarkerClip])`: every Bandai-Namco-2 clip (of `styles`) as body markers
+    (`cache_dir`: where the tarball is extracted, as `load_bandai`)."""
     from jaxmotion.body.skeleton import params_from_bvh, skeleton_body_from_bvh
     from jaxmotion.data.bvh import read_bvh
     from jaxmotion.data.datasets import _BANDAI_NAME, _bandai_clip_dir
 
-    clip_dir = _bandai_clip_dir(Path(root).expanduser(), None)
+    clip_dir = _bandai_clip_dir(Path(root).expanduser(), cache_dir)
     files = sorted(p for p in clip_dir.glob("dataset-2_*.bvh") if _BANDAI_NAME.match(p.stem))
     if not files:
         raise ValueError(f"{clip_dir}: no Bandai-Namco-2 clips")
@@ -136,7 +130,7 @@ def load_bandai_markers(root: str | os.PathLike, marker_set: str = "bandai", cac
     (for recursive projection), `info["point_names"]` the marker names, `info["up_axis"]` 2. The
     markers are computed once and cached as an npz beside the extracted clips.
     """
-    from jaxmotion.data.datasets import BANDAI_TEST_STYLES, BANDAI_TRAIN_STYLES, default_cache_dir
+    from jaxmotion.data.datasets import BANDAI_PROTOCOL, BANDAI_TEST_STYLES, BANDAI_TRAIN_STYLES, default_cache_dir
     from jaxmotion.data.types import MotionDataset, Sequence
 
     styles = BANDAI_TRAIN_STYLES + BANDAI_TEST_STYLES
@@ -154,7 +148,7 @@ def load_bandai_markers(root: str | os.PathLike, marker_set: str = "bandai", cac
         clip_dir = _bandai_clip_dir(Path(root).expanduser(), cache_dir)
         body = skeleton_body_from_bvh(read_bvh(clip_dir / f"{names[0]}.bvh"), marker_set)
     else:
-        body, clips = bandai_marker_clips(root, styles, marker_set)
+        body, clips = bandai_marker_clips(root, styles, marker_set, cache_dir)
         if not clips:
             raise ValueError(f"{root}: no Bandai-Namco-2 clip has a protocol style {styles}")
         names, styl, content = [c.name for c in clips], [c.style for c in clips], [c.content for c in clips]
@@ -169,15 +163,12 @@ def load_bandai_markers(root: str | os.PathLike, marker_set: str = "bandai", cac
         tmp.replace(cache)
     train, test = [], []
     for n, s, c, mk, cn in zip(names, styl, content, markers, canon):
-        seq = Sequence(mk, 30.0, "unknown", c, name=n, canon=cn)
+        seq = Sequence(mk, BANDAI_PROTOCOL["fps"], "unknown", c, name=n, canon=cn)
         (test if s in BANDAI_TEST_STYLES else train).append(seq)
     return MotionDataset(
         name=f"bandai2_markers_{marker_set}",
         skeleton=marker_skeleton(body.marker_names),
-        fps=30.0,
-        t_his=15,
-        t_pred=60,
-        mm_threshold=0.5,
+        **BANDAI_PROTOCOL,
         train=train,
         test=test,
         info={

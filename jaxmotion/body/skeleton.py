@@ -111,9 +111,13 @@ class SkeletonBody:
 
     def markers_autodiff(self, params: BodyParams) -> Float[Array, "m 3"]:
         """Returns `markers(params)` differentiated by plain autodiff (the reference for tests)."""
+        return self.posed(params)[2]
+
+    def posed(self, params: BodyParams):
+        """Returns `(rotations (J, 3, 3), joints (J, 3), markers (M, 3))` in the world."""
         r, t = self.transforms(params)
         mj = np.asarray(self.marker_joints)
-        return jnp.einsum("mij,mj->mi", r[mj], self.marker_offsets) + t[mj]
+        return r, t, jnp.einsum("mij,mj->mi", r[mj], self.marker_offsets) + t[mj]
 
 
 @functools.lru_cache(maxsize=None)
@@ -155,9 +159,8 @@ def _markers_jvp(primals, tangents):
     joint, a bone's length moves them along the bone; `J_r` maps axis-angle changes to rotations."""
     body, params = primals
     dbody, dp = tangents
-    r, t = body.transforms(params)
+    r, t, x = body.posed(params)
     mj = np.asarray(body.marker_joints)
-    x = jnp.einsum("mij,mj->mi", r[mj], body.marker_offsets) + t[mj]
     moved = jnp.asarray(_moved_by(body.parents, body.marker_joints))  # (M, J)
     d = x[:, None, :] - t[None, :, :]  # marker relative to each joint (M, J, 3)
     # Jacobian blocks from the primals only (computed once, however many tangents are pushed).

@@ -81,6 +81,8 @@ HUMANEVA_DROPPED = (
 BANDAI_TARBALL = "bandai2_dev.tar.xz"
 BANDAI_TRAIN_STYLES = ("active", "exhausted", "feminine", "masculine")
 BANDAI_TEST_STYLES = ("normal",)
+# PROTOCOL sec. 3, shared by the joint (`load_bandai`) and marker (`load_bandai_markers`) datasets.
+BANDAI_PROTOCOL = {"fps": 30.0, "t_his": 15, "t_pred": 60, "mm_threshold": 0.5}
 _BANDAI_NAME = re.compile(r"^dataset-2_(?P<content>[^_]+)_(?P<style>[^_]+)_(?P<id>\d+)$")
 
 # Skeletons whose units cannot be guessed from their size (see `guess_scale`).
@@ -248,8 +250,8 @@ def load_bandai(root: str | os.PathLike, cache_dir: str | os.PathLike | None = N
             skipped += 1
             continue
         bvh = read_bvh(f)
-        if abs(bvh.fps - 30.0) > 0.1:
-            raise ValueError(f"{f}: expected 30 fps, file says {bvh.fps:.3f}")
+        if abs(bvh.fps - BANDAI_PROTOCOL["fps"]) > 0.1:
+            raise ValueError(f"{f}: expected {BANDAI_PROTOCOL['fps']:g} fps, file says {bvh.fps:.3f}")
         if bvh.names[0] != "joint_Root" or len(bvh.names) < 2 or bvh.names[1] != "Hips":
             raise ValueError(f"{f}: expected joint_Root then Hips, got {bvh.names[:2]}")
         names, parents, positions = _bvh_positions(bvh, scale=0.01, drop_root=True)
@@ -257,7 +259,7 @@ def load_bandai(root: str | os.PathLike, cache_dir: str | os.PathLike | None = N
             skeleton = Skeleton(names, parents)
         elif (names, parents) != (skeleton.names, skeleton.parents):
             raise ValueError(f"{f}: skeleton differs from {files[0].name}'s")
-        seq = Sequence(positions, 30.0, "unknown", content, name=f.stem)
+        seq = Sequence(positions, BANDAI_PROTOCOL["fps"], "unknown", content, name=f.stem)
         (test if style in BANDAI_TEST_STYLES else train).append(seq)
     if skeleton is None:
         styles = BANDAI_TRAIN_STYLES + BANDAI_TEST_STYLES
@@ -265,10 +267,7 @@ def load_bandai(root: str | os.PathLike, cache_dir: str | os.PathLike | None = N
     return MotionDataset(
         name="bandai2",
         skeleton=skeleton,
-        fps=30.0,
-        t_his=15,
-        t_pred=60,
-        mm_threshold=0.5,
+        **BANDAI_PROTOCOL,
         train=train,
         test=test,
         info={
