@@ -8,18 +8,23 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from jaxmotion.body.fit import LAMBDA_POSE, fit_markers
 from jaxmotion.body.skeleton import toy_skeleton
 
 BODY = toy_skeleton("cmu41")
+# The same skeleton with the `bandai` attachments: two rigid markers on every limb bone. With the
+# generic cmu41 attachments the upper arm carries one marker, and for some poses (5 of seeds 115-134)
+# a 2.7 cm elbow error fits the markers to 0.3 mm: the joints are not identifiable from them.
+RIGID = toy_skeleton("bandai")
 
 
 @functools.cache
-def fitter(lambda_pose: float):
-    return jax.jit(lambda t, p, m: fit_markers(BODY, t, p, m, lambda_pose=lambda_pose, max_steps=60))
+def fitter(lambda_pose: float, rigid: bool = False):
+    body = RIGID if rigid else BODY
+    return jax.jit(lambda t, p, m: fit_markers(body, t, p, m, lambda_pose=lambda_pose, max_steps=60))
 
 
 def random_params(seed: int, pose_std: float = 0.35):
@@ -35,13 +40,14 @@ def random_params(seed: int, pose_std: float = 0.35):
 
 @settings(max_examples=4, deadline=None)
 @given(seed=st.integers(0, 2**20))
+@example(seed=115)  # unidentifiable with the cmu41 attachments (see RIGID)
 def test_fit_recovers_markers_and_joints_from_known_parameters(seed):
     true = random_params(seed)
-    targets = BODY.markers(true)
-    init = BODY.zero_params()._replace(shape=true.shape)  # shape is fixed from the observed sequence
-    fit = fitter(0.0)(targets, init, jnp.ones(BODY.num_markers, bool))
+    targets = RIGID.markers(true)
+    init = RIGID.zero_params()._replace(shape=true.shape)  # shape is fixed from the observed sequence
+    fit = fitter(0.0, rigid=True)(targets, init, jnp.ones(RIGID.num_markers, bool))
     assert float(fit.residual.max()) < 1e-3  # noise-free: under 1 mm
-    np.testing.assert_allclose(BODY.joints(fit.params), BODY.joints(true), atol=1e-3)
+    np.testing.assert_allclose(RIGID.joints(fit.params), RIGID.joints(true), atol=1e-3)
 
 
 def test_projecting_a_valid_body_is_a_fixed_point():
