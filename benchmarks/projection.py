@@ -37,10 +37,10 @@ K, T = 50, 45
 def bandai_targets(data: Path, rng: np.random.Generator):
     """Returns `(body, params (K, T+1) true BodyParams, clean markers (K, T+1, M, 3))` from real clips."""
     from jaxmotion.body.skeleton import params_from_bvh, skeleton_body_from_bvh
-    from jaxmotion.data.bvh import read_bvh
-    from jaxmotion.data.datasets import _bandai_clip_dir
+    from jaxmotion.data.datasets import bandai_clip_dir
+    from jaxmotion.formats.bvh import read_bvh
 
-    clips = sorted(_bandai_clip_dir(data, None).glob("dataset-2_*_normal_*.bvh"))
+    clips = sorted(bandai_clip_dir(data, None).glob("dataset-2_*_normal_*.bvh"))
     body = skeleton_body_from_bvh(read_bvh(clips[0]), "bandai")
     windows, n, i = [], 2 * (T + 1), 0
     while len(windows) < K:

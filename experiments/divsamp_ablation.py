@@ -24,8 +24,9 @@ import jax
 
 from jaxmotion import experiment, metrics
 from jaxmotion.config import load_config
-from jaxmotion.train import divsamp as tds
-from jaxmotion.train.loop import restore_params
+from jaxmotion.methods import divsamp as divsamp_method
+from jaxmotion.methods import get_method
+from jaxmotion.train import runner
 
 VARIANTS = {
     "gumbel + hinge": {"coefficients": "gumbel", "diversity": "hinge"},
@@ -52,18 +53,19 @@ def main(argv=None):
     ds = experiment.load_data(cfg, args.data)
     full = experiment.prepare(ds)
     sub = experiment.prepare(ds, args.windows)
-    base = tds.get_divsamp_config(cfg)
+    base = divsamp_method.settings(cfg)
     work = Path(args.workdir)
-    _, _, cstate = tds._cvae_state(cfg, ds)
-    cvae_variables = restore_params(work / "cvae", cstate).params
+    method = get_method("divsamp")
+    cvae_variables = runner.restore_stage(method, divsamp_method.cvae_stage(cfg, full, base), work, {})
     rows = []
     for name in args.variants:
         d = dataclasses.replace(base, num_steps=args.steps, batch_size=args.batch, **VARIANTS[name])
         stage = "ablation_" + "_".join(VARIANTS[name].values()) + f"_s{args.steps}"
         t0 = time.perf_counter()
-        sampler = tds.train_sampler(cfg, full, cvae_variables, work, resume=True, d=d, stage=stage)
+        stage_def = divsamp_method.sampler_stage(cfg, full, divsamp_method.divsamp.check_config(d), name=stage)
+        sampler = runner.run_stage(method, stage_def, cfg, work, {"cvae": cvae_variables}, resume=True)
         train_s = time.perf_counter() - t0
-        fn = tds.predictors(cfg, ds, {"cvae": cvae_variables, "sampler": sampler}, args.k, d=d)["divsamp"]
+        fn = divsamp_method.make_predictors(d, ds, cvae_variables, sampler, args.k)["divsamp"]
         chunks = experiment.predict_chunks(fn, sub.x, jax.random.key(cfg.seed + 7), cfg.eval_batch)
         m = metrics.evaluate_windows(
             chunks, sub.y, sub.x[:, -1], thr=ds.mm_threshold,

@@ -40,13 +40,12 @@ def main(argv=None):
     ds = experiment.load_data(cfg, args.data)
     full = experiment.prepare(ds)
     sub = experiment.prepare(ds, args.windows)
-    method = experiment.get_method(cfg.method)
-    params = method.restore(cfg, full, Path(args.workdir))
+    params = experiment.restore(cfg, full, Path(args.workdir))
     x_all, y_all = full.x, full.y
     rows = []
     for name in args.methods:
         for k in args.ks:
-            fn = method.predictors(cfg, ds, params, k)[name]
+            fn = experiment.predictors(cfg, ds, params, k)[name]
             batch = max(1, min(cfg.eval_batch, 8000 // k))  # bounds memory at large K
             t0 = time.perf_counter()
             chunks = experiment.predict_chunks(fn, sub.x, jax.random.key(cfg.seed + 7), batch)

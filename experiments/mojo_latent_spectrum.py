@@ -28,13 +28,13 @@ import matplotlib.pyplot as plt  # noqa: E402
 from jaxmotion import experiment  # noqa: E402
 from jaxmotion.config import load_config  # noqa: E402
 from jaxmotion.models import mojo  # noqa: E402
-from jaxmotion.train import mojo as mojo_method  # noqa: E402
-from jaxmotion.train.loop import restore_params  # noqa: E402
+from jaxmotion.methods import get_method  # noqa: E402
+from jaxmotion.train import runner  # noqa: E402
 
 
 def spectrum(cfg, prep, params, batch: int = 128) -> tuple[np.ndarray, np.ndarray]:
     """Returns per-band `(mean |mu|, mean |logvar|)` over all test windows."""
-    model = mojo_method.cvae_model(cfg, prep.dataset)
+    model = mojo.cvae_model(cfg.method_config, prep.dataset.dim, prep.dataset.t_pred)
     enc = jax.jit(lambda x, y: model.apply(params, x, y, method=mojo.MojoCVAE.encode))
     mus, lvs = [], []
     for s in range(0, len(prep.windows), batch):
@@ -70,13 +70,13 @@ def main(argv: list[str] | None = None) -> int:
     cfg = load_config(args.config)
     if cfg.method != "mojo":
         raise SystemExit(f"--config {args.config}: method is {cfg.method!r}, expected 'mojo'")
-    m = mojo_method.mojo_config(cfg)
+    method = get_method("mojo")
+    m = method.settings(cfg)
     if m.latent != "dct":
         raise SystemExit(f"--config {args.config}: latent {m.latent!r} has no DCT bands to plot")
     ds = experiment.load_data(cfg, args.data)
     prep = experiment.prepare(ds, cfg.max_test_windows)
-    _, _, state = mojo_method._cvae_state(cfg, ds)
-    params = restore_params(Path(args.workdir) / "cvae", state).params
+    params = runner.restore_stage(method, method.stages(cfg, prep)[0], Path(args.workdir), {})
     mu, lv = spectrum(cfg, prep, params)
     n_low = mojo.num_low_bands(m, ds.t_pred)
     title = f"{m.variant} latent spectrum on {ds.name}: {len(prep.windows)} test windows, {len(mu)} bands x {m.nz}"

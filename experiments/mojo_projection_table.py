@@ -5,7 +5,7 @@
 Restores the MOJO model trained by `experiments/configs/mojo_bandai_markers.py` and evaluates, on
 the same evenly spaced test windows and with the same latents (same key), "mojo" (the decoder's
 markers) and "mojo_proj" (every predicted frame replaced by the fitted body's markers and fed
-back, `jaxmotion.train.mojo.projected_sampler`), plus zero-velocity. Realism metrics: bone
+back, `jaxmotion.methods.mojo.projected_sampler`), plus zero-velocity. Realism metrics: bone
 deformation (BDF, the std over time of the distance between the two markers on each limb bone,
 summed over the 8 bones, m), body deformation per rigid part (mm), foot skating ratio, FSE.
 A subset, because projection fits the body K x t_pred = 3,000 times per window. Writes
@@ -45,12 +45,12 @@ def main() -> None:
     args = ap.parse_args()
 
     cfg = load_config(args.config)
-    m = cfg.mojo
+    m = cfg.method_config
     m = dataclasses.replace(m, baselines=("zero_velocity", "mojo_proj"), proj_max_steps=args.max_steps or m.proj_max_steps)
-    cfg = dataclasses.replace(cfg, mojo=m, eval_batch=args.batch, max_test_windows=args.windows)
+    cfg = dataclasses.replace(cfg, method_config=m, eval_batch=args.batch, max_test_windows=args.windows)
     ds = experiment.load_data(cfg, args.data)
     prep = experiment.prepare(ds, cfg.max_test_windows)
-    params = None if args.reuse else experiment.get_method(cfg.method).restore(cfg, prep, Path(args.workdir))
+    params = None if args.reuse else experiment.restore(cfg, prep, Path(args.workdir))
     t0 = time.perf_counter()
     out = Path(args.out)
     if args.reuse:
@@ -70,7 +70,7 @@ def main() -> None:
     lines = [
         f"Bandai-Namco-2 markers ({len(ds.info['point_names'])} `bandai` markers, canonical frames), K = {cfg.eval_k[0]}, "
         f"{len(prep.x)} evenly spaced protocol test windows, "
-        f"{cfg.mojo.proj_max_steps} LM steps per stage. Command: `python experiments/mojo_projection_table.py "
+        f"{cfg.method_config.proj_max_steps} LM steps per stage. Command: `python experiments/mojo_projection_table.py "
         f"--workdir {args.workdir} --windows {args.windows}` ({wall / 60:.1f} min, jax {jax.__version__}, "
         f"{jax.devices()[0].platform}).",
         "",

@@ -47,14 +47,13 @@ def dlow_realism(runs: Path, data: str, k: int = 50) -> dict[str, dict[str, floa
 
     from jaxmotion import experiment, realism
     from jaxmotion.config import load_config
-    from jaxmotion.train import dlow
 
     cfg = load_config(Path(__file__).parent / "configs" / "dlow_bandai.py")
     ds = experiment.load_data(cfg, data)
     prep = experiment.prepare(ds, cfg.max_test_windows)
-    params = dlow.restore(cfg, prep, runs / "dlow_bandai")
+    params = experiment.restore(cfg, prep, runs / "dlow_bandai")
     out = {}
-    for name, fn in dlow.predictors(cfg, ds, params, k).items():
+    for name, fn in experiment.predictors(cfg, ds, params, k).items():
         if name not in ("dlow", "cvae"):
             continue
         parts = []

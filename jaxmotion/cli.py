@@ -5,6 +5,7 @@
     jaxmotion train --config CFG [--data PATH] [--workdir DIR] [--resume]
     jaxmotion eval --config CFG [--data PATH] [--workdir DIR]
     jaxmotion sample --config CFG [--workdir DIR] --window 3 --k 50 --method dlow
+    jaxmotion methods                               # the registered methods and their stages' settings type
 """
 
 from __future__ import annotations
@@ -34,15 +35,27 @@ def _parser() -> argparse.ArgumentParser:
             s.add_argument("--window", type=int, default=0, help="test window index")
             s.add_argument("--k", type=int, default=None, help="number of futures (default: largest K of the config)")
             s.add_argument("--method", default=None, help="which sampler (default: the config's method; also cvae, zero_velocity)")
+    sub.add_parser("methods", help="list the registered methods")
     return p
+
+
+def _list_methods() -> int:
+    from jaxmotion.methods import methods
+
+    for name, m in methods().items():
+        t = m.config_type
+        print(f"{name:<10s} {t.__module__}.{t.__name__:<14s} {m.description}")
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    if args.command == "methods":
+        return _list_methods()
     from jaxmotion import experiment
     from jaxmotion.config import load_config
 
-    cfg = load_config(args.config)
+    cfg = experiment.resolve(load_config(args.config))
     workdir = Path(args.workdir or Path("runs") / cfg.name).absolute()
     t0 = time.perf_counter()
     ds = experiment.load_data(cfg, args.data)
@@ -54,11 +67,10 @@ def main(argv: list[str] | None = None) -> int:
         f"{len(prep.windows)} test windows ({time.perf_counter() - t0:.1f}s)",
         flush=True,
     )
-    method = experiment.get_method(cfg.method)
     if args.command in ("run", "train"):
-        params = method.train(cfg, prep, workdir, resume=args.resume)
+        params = experiment.train(cfg, prep, workdir, resume=args.resume)
     else:
-        params = method.restore(cfg, prep, workdir)
+        params = experiment.restore(cfg, prep, workdir)
     if args.command in ("run", "eval"):
         experiment.evaluate(cfg, prep, params, workdir, label)
         png = experiment.report(cfg, prep, params, workdir)
@@ -74,9 +86,9 @@ def main(argv: list[str] | None = None) -> int:
             raise SystemExit(f"--window must be in [0, {len(prep.windows)}), got {args.window}")
         k = args.k or max(cfg.eval_k)
         args.method = args.method or cfg.method
-        fns = method.predictors(cfg, ds, params, k)
+        fns = experiment.predictors(cfg, ds, params, k)
         if args.method not in fns:
-            raise SystemExit(f"--method {args.method} --k {k}: available here: {sorted(fns)} (DLow was trained for K in {cfg.eval_k}, one Q network per K)")
+            raise SystemExit(f"--method {args.method} --k {k}: available here: {sorted(fns)} (a method with one network per K, like DLow, was trained for K in {cfg.eval_k})")
         fn = fns[args.method]
         i = args.window
         preds = np.asarray(fn(jnp.asarray(prep.x[i : i + 1]), jax.random.key(cfg.seed)))[0]

@@ -13,53 +13,18 @@ from typing import Any
 
 
 @dataclasses.dataclass
-class CVAEConfig:
-    """DLow's CVAE stage (`h36m_nsamp50.yml`: nz 128, beta 0.1, lambda_v 1000, lr 1e-3, batch 64)."""
-
-    nz: int = 128
-    nh_rnn: int = 128
-    nh_mlp: tuple[int, ...] = (300, 200)
-    lr: float = 1e-3
-    batch_size: int = 64
-    num_steps: int = 2000
-    lr_fix_fraction: float = 0.2  # DLow keeps lr constant for 100 of 500 epochs, then decays linearly to 0
-    beta: float = 0.1
-    lambda_v: float = 1000.0
-
-
-@dataclasses.dataclass
-class DLowConfig:
-    """DLow's Q-network stage (`h36m_nsamp50.yml`: d_scale 100, lambda_j 25, lambda_recon 2, lr 1e-4)."""
-
-    nh_rnn: int = 128
-    nh_mlp: tuple[int, ...] = (1024, 512)
-    lr: float = 1e-4
-    batch_size: int = 32
-    num_steps: int = 1000
-    lr_fix_fraction: float = 0.2
-    d_scale: float = 100.0
-    lambda_j: float = 25.0
-    lambda_recon: float = 2.0
-    lambda_kl: float = 1.0
-
-
-@dataclasses.dataclass
 class Config:
     """Everything `jaxmotion run/train/eval/sample` needs; defaults are the built-in synthetic job."""
 
     name: str = "dlow_synthetic"
-    method: str = "dlow"  # a key of jaxmotion.experiment.METHODS
+    method: str = "dlow"  # a registered method (`jaxmotion methods` lists them)
     dataset: str = "synthetic"  # "synthetic", or a path: BVH folder, Bandai-Namco-2 folder, H36M/HumanEva npz
     data_options: dict = dataclasses.field(default_factory=dict)  # loader options, e.g. {"markers": "bandai"}
     seed: int = 0
-    # The built-in job must finish in 10 minutes on 2 CPU cores, so it trains ~2k CVAE steps
-    # where DLow trains ~39k. At that budget beta = 0.1 leaves the informative latent dimensions
-    # with tiny posterior variances, and latents near the prior decode to broken bodies (on the
-    # synthetic data: CVAE ADE-m 0.79 m with beta 0.1 vs 0.36 m with beta 1; DLow's Q network then
-    # finds exactly those latents). beta = 1 keeps prior samples on the decoder's training
-    # distribution. The Q network's lr is raised from 1e-4 for the same reason (250 vs ~15k steps).
-    cvae: CVAEConfig = dataclasses.field(default_factory=lambda: CVAEConfig(num_steps=2000, beta=1.0))
-    dlow: DLowConfig = dataclasses.field(default_factory=lambda: DLowConfig(num_steps=250, batch_size=16, lr=5e-4))
+    # The method's own settings, an instance of its `Method.config_type` (DLowConfig, MojoConfig,
+    # DivSampConfig, ...); None means that type's defaults (for DLow: the built-in synthetic job,
+    # `jaxmotion.models.dlow.DLowConfig()`, whose comments give the budget's reasons).
+    method_config: Any = None
     # One Q network is trained per K: DLow's K affine maps are a trained constant.
     eval_k: tuple[int, ...] = (50, 5)
     # Synthetic mode recall (jaxmotion.metrics.mode_recall) on test windows whose decision point is
@@ -74,10 +39,6 @@ class Config:
     eval_batch: int = 64
     max_test_windows: int | None = None  # None: every protocol window
     mm_deviation: str | None = None  # None (protocol), "divsamp" or "comusion"
-    # Method-specific settings of methods other than DLow (their config dataclasses live beside
-    # their models); None when unused.
-    mojo: Any = None
-    divsamp: Any = None
 
 
 def load_config(path: str | Path | None) -> Config:
@@ -99,5 +60,8 @@ def load_config(path: str | Path | None) -> Config:
 
 
 def to_dict(cfg: Config) -> dict:
-    """Returns the config as a JSON-serialisable dict."""
-    return dataclasses.asdict(cfg)
+    """Returns the config as a JSON-serialisable dict (`method_config_type` names the settings' type)."""
+    d = dataclasses.asdict(cfg)
+    mc = cfg.method_config
+    d["method_config_type"] = None if mc is None else f"{type(mc).__module__}.{type(mc).__name__}"
+    return d

@@ -1,39 +1,41 @@
 """The job behind the `jaxmotion` command: data -> train a method -> protocol evaluation -> report.
 
 Every step is also callable from Python. A work directory holds one folder per training stage
-(`cvae/`, `dlow_k50/`, ... each with `ckpt/` and `log.jsonl`), `metrics.json` (PROTOCOL sec. 5
-records, one per (method, K)) and `samples.png` (observed motion and K predicted futures).
+(`cvae/`, `dlow_k50/`, ... each with `ckpt/`, `log.jsonl` and `stage.json`), `metrics.json`
+(PROTOCOL sec. 5 records, one per (predictor, K)) and `samples.png` (observed motion and K
+predicted futures). The method is looked up in the registry (`jaxmotion.method`) and its stages
+are run by the one stage runner (`jaxmotion.train.runner`).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import json
 import platform
 import time
 from pathlib import Path
-from typing import Callable
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxmotion import metrics
 from jaxmotion.config import Config, to_dict
+from jaxmotion.data.datasets import load_dataset
+from jaxmotion.data.synthetic import make_synthetic
 from jaxmotion.data.types import MotionDataset
 from jaxmotion.data.windows import TrainSampler, canonicalise_windows, split_frames, test_windows
+from jaxmotion.method import Method, Predictor
+from jaxmotion.methods import get_method
+from jaxmotion.train import runner
 
-Predictor = Callable[[jax.Array, jax.Array], jax.Array]  # (x (b, t_his, D), key) -> (b, K, t_pred, D)
-
-# Method name -> module providing train / restore / predictors (see jaxmotion/train/dlow.py).
-METHODS = {"dlow": "jaxmotion.train.dlow", "divsamp": "jaxmotion.train.divsamp", "mojo": "jaxmotion.train.mojo"}
+__all__ = ["get_method", "resolve", "load_data", "Prepared", "prepare", "train", "restore", "predictors", "evaluate",
+           "report", "Predictor"]
 
 
-def get_method(name: str):
-    """Returns the module implementing method `name`."""
-    if name not in METHODS:
-        raise ValueError(f"unknown method {name!r}; known: {sorted(METHODS)}")
-    return importlib.import_module(METHODS[name])
+def resolve(cfg: Config) -> Config:
+    """Returns `cfg` with its method's settings checked and filled in (`method_config=None` -> the method's defaults)."""
+    return dataclasses.replace(cfg, method_config=get_method(cfg.method).settings(cfg))
 
 
 def load_data(cfg: Config, data: str | None = None) -> MotionDataset:
@@ -43,13 +45,9 @@ def load_data(cfg: Config, data: str | None = None) -> MotionDataset:
     """
     spec = data or cfg.dataset
     if spec == "synthetic":
-        from jaxmotion.data.synthetic import make_synthetic
-
         if cfg.data_options:
             raise ValueError(f"the synthetic dataset takes no data_options, got {sorted(cfg.data_options)}")
         return make_synthetic(cfg.seed)
-    from jaxmotion.data.datasets import load_dataset
-
     return load_dataset(spec, **dict(cfg.data_options))
 
 
@@ -63,6 +61,7 @@ class Prepared:
     seq_index: np.ndarray
     starts: np.ndarray
     keep: np.ndarray  # indices of these windows among all protocol test windows
+    train_frames: list[np.ndarray] | None = None  # the training split's frame vectors (uncanonicalised)
 
     @property
     def x(self) -> np.ndarray:
@@ -89,7 +88,39 @@ def prepare(ds: MotionDataset, max_test_windows: int | None = None) -> Prepared:
         # Evenly spaced, so a quick evaluation still covers every test sequence.
         keep = np.linspace(0, len(windows) - 1, max_test_windows).round().astype(int)
         windows, seq_index, starts = windows[keep], seq_index[keep], starts[keep]
-    return Prepared(ds, sampler, windows, seq_index, starts, keep)
+    return Prepared(ds, sampler, windows, seq_index, starts, keep, train if train_canon is None else None)
+
+
+def train(cfg: Config, prep: Prepared, workdir: str | Path, resume: bool = False) -> dict:
+    """Returns `{stage name: parameters}` after training every stage of the config's method (`runner.train`)."""
+    return runner.train(get_method(cfg.method), cfg, prep, workdir, resume=resume)
+
+
+def restore(cfg: Config, prep: Prepared, workdir: str | Path) -> dict:
+    """Returns `{stage name: parameters}` of a trained work directory (`runner.restore`)."""
+    return runner.restore(get_method(cfg.method), cfg, prep, workdir)
+
+
+def predictors(cfg: Config, ds: MotionDataset, params: dict, k: int) -> dict[str, Predictor]:
+    """Returns the method's jitted K-future predictors by name."""
+    return get_method(cfg.method).predictors(cfg, ds, params, k)
+
+
+def reference_sets(method: Method, prep: Prepared):
+    """Returns `(mm, reference_futures)` for `metrics.evaluate_windows`: the multimodal ground truth the method asks for.
+
+    "test" (PROTOCOL sec. 2): MM sets over the test windows. "train": the futures of training windows
+    (every `t_his` frames of every training sequence) whose last observed pose is within the
+    dataset's threshold, a pseudo ground truth some published code compares against.
+    """
+    ds = prep.dataset
+    if method.reference_futures == "test":
+        return metrics.multimodal_gt(prep.x[:, -1], ds.mm_threshold), None
+    if prep.train_frames is None:
+        raise ValueError(f"method {method.name!r}: training-window reference futures need uncanonicalised frames")
+    ref, _, _ = test_windows(prep.train_frames, ds.t_his, ds.t_pred)
+    sets = metrics.multimodal_gt(prep.x[:, -1], ds.mm_threshold, reference_last_poses=ref[:, ds.t_his - 1])
+    return sets, ref[:, ds.t_his :]
 
 
 def predict_chunks(fn: Predictor, x: np.ndarray, key: jax.Array, batch: int):
@@ -104,24 +135,25 @@ def predict_chunks(fn: Predictor, x: np.ndarray, key: jax.Array, batch: int):
 
 
 def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str | None = None) -> list[dict]:
-    """Returns and writes (`workdir/metrics.json`) one PROTOCOL sec. 5 record per (method, K)."""
-    from jaxmotion import metrics
+    """Returns and writes (`workdir/metrics.json`) one PROTOCOL sec. 5 record per (predictor, K).
 
+    Mode recall is added where the dataset knows its test windows' futures (`MotionDataset.known_modes`),
+    and the method's `extra_metrics` where it has them.
+    """
     ds = prep.dataset
+    method = get_method(cfg.method)
+    cfg = resolve(cfg)
     modes = None
-    if ds.name == "synthetic":
-        from jaxmotion.data.synthetic import test_modes
-
-        modes = test_modes(ds)
+    if ds.known_modes is not None:
+        modes = ds.known_modes(ds)
         sel = prep.keep
         modes = modes._replace(modes=modes.modes[sel], true_mode=modes.true_mode[sel], boundary=modes.boundary[sel])
     x, y = prep.x, prep.y
-    mm_sets = metrics.multimodal_gt(x[:, -1], ds.mm_threshold)
+    mm_sets, ref_futures = reference_sets(method, prep)
     records = []
-    # Optional method hook `extra_metrics(ds, pred, gt) -> {name: (n,) per-window array}`.
-    extra_fn = getattr(get_method(cfg.method), "extra_metrics", None)
+    extra_fn = method.extra_metrics
     for k in cfg.eval_k:
-        for name, fn in get_method(cfg.method).predictors(cfg, ds, params, k).items():
+        for name, fn in method.predictors(cfg, ds, params, k).items():
             t0 = time.perf_counter()
             recalls, extras = [], []
 
@@ -138,7 +170,7 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
                         extras.append(extra_fn(ds, p, y[i * cfg.eval_batch : i * cfg.eval_batch + p.shape[0]]))
                     yield p
 
-            m = metrics.evaluate_windows(chunks(), y, mm_sets, mm_deviation=cfg.mm_deviation)
+            m = metrics.evaluate_windows(chunks(), y, mm_sets, reference_futures=ref_futures, mm_deviation=cfg.mm_deviation)
             m.pop("n_windows")  # a top-level field of the record (PROTOCOL sec. 5)
             if modes is not None:
                 sel = modes.boundary <= cfg.mode_max_boundary
@@ -184,8 +216,7 @@ def report(cfg: Config, prep: Prepared, params, workdir: Path, method: str | Non
     That is the window whose multimodal ground-truth futures (PROTOCOL sec. 2) end furthest apart
     on average: where a good stochastic predictor should show several distinct futures.
     """
-    from jaxmotion import metrics
-    from jaxmotion.viz import plot_futures
+    from jaxmotion.viz import plot_futures  # matplotlib: imported only when a picture is drawn
 
     ds = prep.dataset
     k = max(cfg.eval_k)
@@ -194,11 +225,17 @@ def report(cfg: Config, prep: Prepared, params, workdir: Path, method: str | Non
     ends = prep.y[:, -1]
     spread = (np.linalg.norm(ends[idx] - ends[:, None], axis=-1) * mask).sum(1) / mask.sum(1)
     i = int(np.argmax(spread))
-    method = method or cfg.method
-    fn = get_method(cfg.method).predictors(cfg, ds, params, k)[method]
+    fns = predictors(cfg, ds, params, k)
+    method = method or _main_predictor(cfg, fns)
+    fn = fns[method]
     preds = np.asarray(fn(jnp.asarray(prep.x[i : i + 1]), jax.random.key(cfg.seed + 11)))[0]
     title = (
         f"{ds.name}: test window {i} (sequence {prep.seq_index[i]}, start frame {prep.starts[i]}), "
         f"{method}, K={k}, {ds.t_his} observed -> {ds.t_pred} predicted frames at {ds.fps:g} fps"
     )
     return plot_futures(prep.x[i], preds, prep.y[i], ds.skeleton.parents, workdir / "samples.png", title=title)
+
+
+def _main_predictor(cfg: Config, fns: dict) -> str:
+    """Returns the name of the method's own predictor among `fns` (the method's name, else the last one)."""
+    return cfg.method if cfg.method in fns else list(fns)[-1]

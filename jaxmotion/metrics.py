@@ -7,6 +7,15 @@ Every metric is first computed per window (functions returning `(N,)` arrays, al
 averaged over windows by `evaluate_windows`, which streams over window chunks so that
 `N * K * t_pred * D` predictions never have to exist at once, and which is the only place where the
 known deviations of published code (`mm_deviation="divsamp" | "comusion"`) can be switched on.
+
+Argument checks. Shapes are checked by the jaxtyping annotations of the public entry points, which
+are decorated with `jaxtyped(typechecker=beartype)` so that the check runs for every user, not only
+under the test suite's import hook: a wrong number of dimensions, or axes that disagree between
+arguments (N, K, t_pred, D, M), raise `jaxtyping.TypeCheckError` (a `TypeError`) naming the
+argument and the axis sizes bound so far. Under `jit` the check costs nothing at run time (it runs
+while tracing). What an annotation cannot say stays a hand-written `ValueError`: NaN / inf
+inputs, `idx` entries outside the futures, non-positive thresholds, and the chunks of an iterable
+`pred`.
 """
 
 from __future__ import annotations
@@ -18,8 +27,9 @@ from typing import Literal, NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
+from beartype import beartype
 from jax import lax
-from jaxtyping import Array, Bool, Float, Int
+from jaxtyping import Array, ArrayLike, Bool, Float, Int, jaxtyped
 
 MMDeviation = Literal[None, "divsamp", "comusion"]
 
@@ -34,21 +44,19 @@ class MMSets(NamedTuple):
 
 
 # --------------------------------------------------------------------------------------------
-# Boundary checks: run on concrete inputs only, so the public functions still trace under jit.
+# Boundary checks. Shapes: the annotations, checked by `_checked` on every public entry point.
+# Values: below, on concrete inputs only, so the public functions still trace under jit.
+
+_checked = jaxtyped(typechecker=beartype)
 
 
 def _is_traced(x) -> bool:
     return isinstance(x, jax.core.Tracer)
 
 
-def _check(fn: str, name: str, x, ndim: int, *, finite: bool = True):
-    if not hasattr(x, "ndim"):
-        x = np.asarray(x)
-    if x.ndim != ndim:
-        raise ValueError(f"{fn}: `{name}` must have {ndim} dimensions, got shape {tuple(x.shape)}")
-    if finite and not _is_traced(x) and not np.all(np.isfinite(np.asarray(x))):
+def _check_finite(fn: str, name: str, x):
+    if not _is_traced(x) and not np.all(np.isfinite(np.asarray(x))):
         raise ValueError(f"{fn}: `{name}` contains NaN or inf")
-    return x
 
 
 def _check_same(fn: str, what: str, a_name: str, a: object, b_name: str, b: object):
@@ -56,28 +64,23 @@ def _check_same(fn: str, what: str, a_name: str, a: object, b_name: str, b: obje
         raise ValueError(f"{fn}: {what} of `{a_name}` ({a}) does not match that of `{b_name}` ({b})")
 
 
+def _check_idx(fn: str, idx, mask, n_futures: int):
+    if not _is_traced(idx) and not _is_traced(mask):
+        i, m = np.asarray(idx), np.asarray(mask, bool)
+        if m.any() and (i[m].min() < 0 or i[m].max() >= n_futures):
+            raise ValueError(f"{fn}: `idx` has entries outside [0, {n_futures}) where `mask` is True")
+
+
 def _check_pred_gt(fn: str, pred, gt):
-    pred = _check(fn, "pred", pred, 4)
-    gt = _check(fn, "gt", gt, 3)
-    _check_same(fn, "number of windows", "pred", pred.shape[0], "gt", gt.shape[0])
-    _check_same(fn, "t_pred", "pred", pred.shape[2], "gt", gt.shape[1])
-    _check_same(fn, "D", "pred", pred.shape[3], "gt", gt.shape[2])
+    _check_finite(fn, "pred", pred)
+    _check_finite(fn, "gt", gt)
     return jnp.asarray(pred, jnp.float32), jnp.asarray(gt, jnp.float32)
 
 
 def _check_mm(fn: str, pred, futures, idx, mask):
-    pred = _check(fn, "pred", pred, 4)
-    futures = _check(fn, "futures", futures, 3)
-    idx = _check(fn, "idx", idx, 2, finite=False)
-    mask = _check(fn, "mask", mask, 2, finite=False)
-    _check_same(fn, "number of windows", "pred", pred.shape[0], "idx", idx.shape[0])
-    _check_same(fn, "shape", "idx", idx.shape, "mask", mask.shape)
-    _check_same(fn, "t_pred", "pred", pred.shape[2], "futures", futures.shape[1])
-    _check_same(fn, "D", "pred", pred.shape[3], "futures", futures.shape[2])
-    if not _is_traced(idx) and not _is_traced(mask):
-        i, m = np.asarray(idx), np.asarray(mask, bool)
-        if m.any() and (i[m].min() < 0 or i[m].max() >= futures.shape[0]):
-            raise ValueError(f"{fn}: `idx` has entries outside [0, {futures.shape[0]}) where `mask` is True")
+    _check_finite(fn, "pred", pred)
+    _check_finite(fn, "futures", futures)
+    _check_idx(fn, idx, mask, futures.shape[0])
     return (
         jnp.asarray(pred, jnp.float32),
         jnp.asarray(futures, jnp.float32),
@@ -127,25 +130,29 @@ def _apd(pred: Float[Array, "n k t d"]) -> Float[Array, " n"]:
     return total / (k * (k - 1) / 2)
 
 
-def apd(pred: Float[Array, "n k t d"]) -> Float[Array, " n"]:
+@_checked
+def apd(pred: Float[ArrayLike, "n k t d"]) -> Float[Array, " n"]:
     """Returns per-window APD `mean_{i<j} ||vec(Yhat_i) - vec(Yhat_j)||_2` (PROTOCOL sec. 2); 0 when K = 1."""
-    pred = jnp.asarray(_check("apd", "pred", pred, 4), jnp.float32)
-    return _apd(pred)
+    _check_finite("apd", "pred", pred)
+    return _apd(jnp.asarray(pred, jnp.float32))
 
 
-def ade(pred: Float[Array, "n k t d"], gt: Float[Array, "n t d"]) -> Float[Array, " n"]:
+@_checked
+def ade(pred: Float[ArrayLike, "n k t d"], gt: Float[ArrayLike, "n t d"]) -> Float[Array, " n"]:
     """Returns per-window ADE `min_k (1/t_pred) sum_t ||Yhat_{k,t} - Y_t||_2` (PROTOCOL sec. 2)."""
     pred, gt = _check_pred_gt("ade", pred, gt)
     return _reduce_k(_ade_terms(pred, gt), "min")
 
 
-def fde(pred: Float[Array, "n k t d"], gt: Float[Array, "n t d"]) -> Float[Array, " n"]:
+@_checked
+def fde(pred: Float[ArrayLike, "n k t d"], gt: Float[ArrayLike, "n t d"]) -> Float[Array, " n"]:
     """Returns per-window FDE `min_k ||Yhat_{k,T} - Y_T||_2` (PROTOCOL sec. 2)."""
     pred, gt = _check_pred_gt("fde", pred, gt)
     return _reduce_k(_fde_terms(pred, gt), "min")
 
 
-def ade_median(pred: Float[Array, "n k t d"], gt: Float[Array, "n t d"]) -> Float[Array, " n"]:
+@_checked
+def ade_median(pred: Float[ArrayLike, "n k t d"], gt: Float[ArrayLike, "n t d"]) -> Float[Array, " n"]:
     """Returns per-window ADE-m: the ADE term's median over k instead of its min (PROTOCOL sec. 2).
 
     For even K the median is the mean of the two middle values (numpy's convention).
@@ -154,7 +161,8 @@ def ade_median(pred: Float[Array, "n k t d"], gt: Float[Array, "n t d"]) -> Floa
     return _reduce_k(_ade_terms(pred, gt), "median")
 
 
-def fde_median(pred: Float[Array, "n k t d"], gt: Float[Array, "n t d"]) -> Float[Array, " n"]:
+@_checked
+def fde_median(pred: Float[ArrayLike, "n k t d"], gt: Float[ArrayLike, "n t d"]) -> Float[Array, " n"]:
     """Returns per-window FDE-m: the FDE term's median over k instead of its min (PROTOCOL sec. 2)."""
     pred, gt = _check_pred_gt("fde_median", pred, gt)
     return _reduce_k(_fde_terms(pred, gt), "median")
@@ -164,12 +172,13 @@ def fde_median(pred: Float[Array, "n k t d"], gt: Float[Array, "n t d"]) -> Floa
 # Multimodal ground truth.
 
 
+@_checked
 def multimodal_gt(
-    last_poses: Float[Array, "n d"],
+    last_poses: Float[ArrayLike, "n d"],
     thr: float,
     *,
     exclude_self: bool = False,
-    reference_last_poses: Float[Array, "r d"] | None = None,
+    reference_last_poses: Float[ArrayLike, "r d"] | None = None,
     max_chunk_elems: int = 2_000_000,
 ) -> MMSets:
     """Returns left-packed `MMSets(idx (N, M), mask (N, M))` with `MM(i) = {j : ||c_i - c_j||_2 < thr}` (PROTOCOL sec. 2).
@@ -186,7 +195,8 @@ def multimodal_gt(
     numbers, so memory stays small for N of many thousands.
     """
     fn = "multimodal_gt"
-    c = np.asarray(_check(fn, "last_poses", last_poses, 2), np.float64)
+    _check_finite(fn, "last_poses", last_poses)
+    c = np.asarray(last_poses, np.float64)
     if not np.isfinite(thr) or thr <= 0:
         raise ValueError(f"{fn}: `thr` must be a positive finite distance, got {thr}")
     if reference_last_poses is None:
@@ -194,8 +204,8 @@ def multimodal_gt(
     else:
         if exclude_self:
             raise ValueError(f"{fn}: `exclude_self` has no meaning with `reference_last_poses`")
-        ref = np.asarray(_check(fn, "reference_last_poses", reference_last_poses, 2), np.float64)
-        _check_same(fn, "D", "last_poses", c.shape[1], "reference_last_poses", ref.shape[1])
+        _check_finite(fn, "reference_last_poses", reference_last_poses)
+        ref = np.asarray(reference_last_poses, np.float64)
     n, n_ref = c.shape[0], ref.shape[0]
     rows_per_chunk = max(1, max_chunk_elems // max(1, n_ref * c.shape[1]))
     rows, cols = [], []
@@ -262,11 +272,12 @@ def _mm_errors(pred, futures, idx, mask, batch_size):
     return mm_ade.reshape(-1)[:n], mm_fde.reshape(-1)[:n]
 
 
+@_checked
 def mm_errors(
-    pred: Float[Array, "n k t d"],
-    futures: Float[Array, "r t d"],
-    idx: Int[Array, "n m"],
-    mask: Bool[Array, "n m"],
+    pred: Float[ArrayLike, "n k t d"],
+    futures: Float[ArrayLike, "r t d"],
+    idx: Int[ArrayLike, "n m"],
+    mask: Bool[ArrayLike, "n m"],
     *,
     batch_size: int = 16,
 ) -> tuple[Float[Array, " n"], Float[Array, " n"]]:
@@ -280,11 +291,12 @@ def mm_errors(
     return _mm_errors(pred, futures, idx, mask, batch_size)
 
 
+@_checked
 def mmade(
-    pred: Float[Array, "n k t d"],
-    futures: Float[Array, "r t d"],
-    idx: Int[Array, "n m"],
-    mask: Bool[Array, "n m"],
+    pred: Float[ArrayLike, "n k t d"],
+    futures: Float[ArrayLike, "r t d"],
+    idx: Int[ArrayLike, "n m"],
+    mask: Bool[ArrayLike, "n m"],
     *,
     batch_size: int = 16,
 ) -> Float[Array, " n"]:
@@ -292,11 +304,12 @@ def mmade(
     return mm_errors(pred, futures, idx, mask, batch_size=batch_size)[0]
 
 
+@_checked
 def mmfde(
-    pred: Float[Array, "n k t d"],
-    futures: Float[Array, "r t d"],
-    idx: Int[Array, "n m"],
-    mask: Bool[Array, "n m"],
+    pred: Float[ArrayLike, "n k t d"],
+    futures: Float[ArrayLike, "r t d"],
+    idx: Int[ArrayLike, "n m"],
+    mask: Bool[ArrayLike, "n m"],
     *,
     batch_size: int = 16,
 ) -> Float[Array, " n"]:
@@ -304,10 +317,11 @@ def mmfde(
     return mm_errors(pred, futures, idx, mask, batch_size=batch_size)[1]
 
 
+@_checked
 def reduce_mm(
-    per_window: Float[Array, " n"],
-    n_members: Int[Array, " n"],
-    n_others: Int[Array, " n"],
+    per_window: Float[ArrayLike, " n"],
+    n_members: Int[ArrayLike, " n"],
+    n_others: Int[ArrayLike, " n"],
     mm_deviation: MMDeviation = None,
 ) -> tuple[float, int]:
     """Returns `(average over windows, number of windows averaged)` of an MM metric (PROTOCOL sec. 2).
@@ -330,7 +344,7 @@ def reduce_mm(
     if mm_deviation == "comusion":
         keep = n_others > 0
         return float(v[keep].mean()) if keep.any() else float("nan"), int(keep.sum())
-    raise ValueError(f"reduce_mm: `mm_deviation` must be None, 'divsamp' or 'comusion', got {mm_deviation!r}")
+    raise AssertionError(f"unreachable: `mm_deviation` is checked by its annotation, got {mm_deviation!r}")
 
 
 # --------------------------------------------------------------------------------------------
@@ -366,12 +380,13 @@ def _pred_chunks(pred, chunk_size: int) -> Iterator[np.ndarray | jax.Array]:
             yield piece[s : s + chunk_size]
 
 
+@_checked
 def window_metrics(
-    pred: Float[Array, "n k t d"] | Iterable[Float[Array, "c k t d"]],
-    gt: Float[Array, "n t d"],
-    futures: Float[Array, "r t d"],
-    idx: Int[Array, "n m"],
-    mask: Bool[Array, "n m"],
+    pred: Float[ArrayLike, "n k t d"] | Iterable[Float[ArrayLike, "c k t d"]],
+    gt: Float[ArrayLike, "n t d"],
+    futures: Float[ArrayLike, "r t d"],
+    idx: Int[ArrayLike, "n m"],
+    mask: Bool[ArrayLike, "n m"],
     *,
     chunk_size: int = 32,
 ) -> dict[str, np.ndarray]:
@@ -383,17 +398,13 @@ def window_metrics(
     `chunk_size` windows so the jitted kernel compiles once.
     """
     fn = "window_metrics"
-    gt = np.asarray(_check(fn, "gt", gt, 3), np.float32)
-    futures = jnp.asarray(_check(fn, "futures", futures, 3), jnp.float32)
-    idx = np.asarray(_check(fn, "idx", idx, 2, finite=False), np.int32)
-    mask = np.asarray(_check(fn, "mask", mask, 2, finite=False), bool)
+    _check_finite(fn, "gt", gt)
+    _check_finite(fn, "futures", futures)
+    _check_idx(fn, idx, mask, futures.shape[0])
+    gt = np.asarray(gt, np.float32)
+    futures = jnp.asarray(futures, jnp.float32)
+    idx, mask = np.asarray(idx, np.int32), np.asarray(mask, bool)
     n = gt.shape[0]
-    _check_same(fn, "number of windows", "gt", n, "idx", idx.shape[0])
-    _check_same(fn, "shape", "idx", idx.shape, "mask", mask.shape)
-    _check_same(fn, "t_pred", "gt", gt.shape[1], "futures", futures.shape[1])
-    _check_same(fn, "D", "gt", gt.shape[2], "futures", futures.shape[2])
-    if mask.any() and (idx[mask].min() < 0 or idx[mask].max() >= futures.shape[0]):
-        raise ValueError(f"{fn}: `idx` has entries outside [0, {futures.shape[0]}) where `mask` is True")
     out = {k: np.empty((n,), np.float32) for k in METRIC_NAMES}
     start, k_seen = 0, None
     for chunk in _pred_chunks(pred, chunk_size):
@@ -422,14 +433,15 @@ def window_metrics(
     return out
 
 
+@_checked
 def evaluate_windows(
-    pred: Float[Array, "n k t d"] | Iterable[Float[Array, "c k t d"]],
-    gt: Float[Array, "n t d"],
-    mm: Float[Array, "n d"] | MMSets,
+    pred: Float[ArrayLike, "n k t d"] | Iterable[Float[ArrayLike, "c k t d"]],
+    gt: Float[ArrayLike, "n t d"],
+    mm: Float[ArrayLike, "n d"] | MMSets,
     *,
     thr: float | None = None,
-    reference_last_poses: Float[Array, "r d"] | None = None,
-    reference_futures: Float[Array, "r t d"] | None = None,
+    reference_last_poses: Float[ArrayLike, "r d"] | None = None,
+    reference_futures: Float[ArrayLike, "r t d"] | None = None,
     mm_deviation: MMDeviation = None,
     chunk_size: int = 32,
 ) -> dict[str, float]:
@@ -449,9 +461,7 @@ def evaluate_windows(
     future other than their own); `MM_n_averaged` (windows entering the MMADE/MMFDE average).
     """
     fn = "evaluate_windows"
-    if mm_deviation not in (None, "divsamp", "comusion"):
-        raise ValueError(f"{fn}: `mm_deviation` must be None, 'divsamp' or 'comusion', got {mm_deviation!r}")
-    gt = np.asarray(_check(fn, "gt", gt, 3), np.float32)
+    gt = np.asarray(gt, np.float32)
     if isinstance(mm, MMSets):
         if reference_last_poses is not None:
             raise ValueError(f"{fn}: pass `reference_last_poses` only with last poses, not with `MMSets`")
@@ -462,7 +472,10 @@ def evaluate_windows(
         if reference_last_poses is not None and reference_futures is None:
             raise ValueError(f"{fn}: `reference_last_poses` needs `reference_futures`")
         sets = multimodal_gt(mm, thr, reference_last_poses=reference_last_poses)
-    mask = np.asarray(_check(fn, "mm.mask", sets.mask, 2, finite=False), bool)
+    # `MMSets` fields are not checked by the annotation of `mm`: check them against `gt` here.
+    mask = np.asarray(sets.mask, bool)
+    if mask.ndim != 2:
+        raise ValueError(f"{fn}: `mm.mask` must be (n, m), got shape {mask.shape}")
     _check_same(fn, "number of windows", "mm", mask.shape[0], "gt", gt.shape[0])
     _check_same(fn, "shape", "mm.idx", np.shape(sets.idx), "mm.mask", mask.shape)
     if reference_futures is None:
@@ -470,10 +483,7 @@ def evaluate_windows(
         window = np.arange(gt.shape[0])[:, None]
         is_self = np.asarray(sets.idx) == window
     else:
-        futures = _check(fn, "reference_futures", reference_futures, 3)
-        if reference_last_poses is not None:
-            n_ref = np.shape(reference_last_poses)[0]
-            _check_same(fn, "number of windows", "reference_futures", futures.shape[0], "reference_last_poses", n_ref)
+        futures = reference_futures
         is_self = np.zeros(mask.shape, bool)
     n_members = mask.sum(axis=1)
     n_others = (mask & ~is_self).sum(axis=1)
@@ -515,12 +525,13 @@ def _mode_recall(pred, modes, probs, mask, thr, batch_size):
     return lax.map(lambda a: _recall_one(*a, thr), (pred, modes, probs, mask), batch_size=batch_size)
 
 
+@_checked
 def mode_recall(
-    pred: Float[Array, "n k t d"],
-    modes: Float[Array, "n p t d"],
-    mode_probs: Float[Array, "n p"] | Float[Array, " p"],
-    mode_mask: Bool[Array, "n p"] | None,
-    thr: float,
+    pred: Float[ArrayLike, "n k t d"],
+    modes: Float[ArrayLike, "n p t d"],
+    mode_probs: Float[ArrayLike, "n p"] | Float[ArrayLike, " p"],
+    mode_mask: Bool[ArrayLike, "n p"] | None,
+    thr: float | Float[ArrayLike, ""],
     *,
     batch_size: int = 16,
 ) -> tuple[Float[Array, " n"], Float[Array, " n"]]:
@@ -538,20 +549,15 @@ def mode_recall(
     does), and `mode_mask=None` means every mode is valid.
     """
     fn = "mode_recall"
-    if thr is None or (not _is_traced(thr) and (not np.isfinite(thr) or thr <= 0)):
+    if not _is_traced(thr) and (not np.isfinite(thr) or thr <= 0):
         raise ValueError(f"{fn}: `thr` must be a positive finite distance, got {thr}")
-    pred = _check(fn, "pred", pred, 4)
-    modes = _check(fn, "modes", modes, 4)
+    for name, x in (("pred", pred), ("modes", modes), ("mode_probs", mode_probs)):
+        _check_finite(fn, name, x)
     n, p = modes.shape[:2]
-    if getattr(mode_probs, "ndim", np.ndim(mode_probs)) == 1:
-        mode_probs = jnp.broadcast_to(jnp.asarray(mode_probs), (n,) + tuple(np.shape(mode_probs)))
-    mode_probs = _check(fn, "mode_probs", mode_probs, 2)
-    mode_mask = jnp.ones((n, p), bool) if mode_mask is None else _check(fn, "mode_mask", mode_mask, 2, finite=False)
-    _check_same(fn, "number of windows", "pred", pred.shape[0], "modes", modes.shape[0])
-    _check_same(fn, "t_pred", "pred", pred.shape[2], "modes", modes.shape[2])
-    _check_same(fn, "D", "pred", pred.shape[3], "modes", modes.shape[3])
-    _check_same(fn, "shape", "mode_probs", mode_probs.shape, "modes[:, :, 0, 0]", modes.shape[:2])
-    _check_same(fn, "shape", "mode_mask", mode_mask.shape, "modes[:, :, 0, 0]", modes.shape[:2])
+    if mode_probs.ndim == 1:
+        mode_probs = jnp.broadcast_to(jnp.asarray(mode_probs), (n, p))
+    if mode_mask is None:
+        mode_mask = jnp.ones((n, p), bool)
     return _mode_recall(
         jnp.asarray(pred, jnp.float32),
         jnp.asarray(modes, jnp.float32),

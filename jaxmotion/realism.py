@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 import jax.scipy.special
 import numpy as np
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Float
 
 from jaxmotion.body.markersets import LIMB_MARKER_PAIRS
 
@@ -64,7 +64,7 @@ LIMB_BONES: dict[str, tuple[tuple[str, str], ...]] = {
 }  # fmt: skip
 
 
-def points(motion: Float[Array, "... t d"], names: Sequence[str], fn: str = "points") -> Float[Array, "... t v 3"]:
+def points(motion: Float[ArrayLike, "... t d"], names: Sequence[str], fn: str = "points") -> Float[Array, "... t v 3"]:
     """Returns the motion as `(..., T, V, 3)` points, checking `D == 3 * len(names)`."""
     if motion.shape[-1] != 3 * len(names):
         raise ValueError(
@@ -87,7 +87,7 @@ def name_indices(names: Sequence[str], required: Sequence[str], fn: str) -> list
 # Frequency-spectrum entropy.
 
 
-def spectrum_entropy(motion: Float[Array, "... t d"], eps: float = 1e-6) -> Float[Array, "..."]:
+def spectrum_entropy(motion: Float[ArrayLike, "... t d"], eps: float = 1e-6) -> Float[Array, "..."]:
     """Returns the entropy of each dimension's normalised power spectrum over time, averaged over dims.
 
     Power `|FFT_t|^2 + eps` (two-sided, as the release's `fftn(axes=time)`), normalised over the T
@@ -98,7 +98,7 @@ def spectrum_entropy(motion: Float[Array, "... t d"], eps: float = 1e-6) -> Floa
     return jnp.mean(jnp.sum(jax.scipy.special.entr(p), axis=-2), axis=-1)  # entr(0) = 0
 
 
-def fse(pred: Float[Array, "... k t d"], gt: Float[Array, "... t d"], eps: float = 1e-6) -> Float[Array, "..."]:
+def fse(pred: Float[ArrayLike, "... k t d"], gt: Float[ArrayLike, "... t d"], eps: float = 1e-6) -> Float[Array, "..."]:
     """Returns FSE: mean over samples of the predictions' spectrum entropy minus the ground truth's (MOJO Sec. 4.1)."""
     if pred.shape[-2:] != gt.shape[-2:]:
         raise ValueError(f"fse: `pred` frames {tuple(pred.shape[-2:])} and `gt` frames {tuple(gt.shape[-2:])} differ")
@@ -116,7 +116,7 @@ def _pair_dists(p: Float[Array, "... t v 3"], pairs: Sequence[tuple[int, int]]) 
 
 
 def body_deformation(
-    motion: Float[Array, "... t d"], names: Sequence[str], parts: Mapping[str, Sequence[str]] = BODY_PARTS
+    motion: Float[ArrayLike, "... t d"], names: Sequence[str], parts: Mapping[str, Sequence[str]] = BODY_PARTS
 ) -> dict[str, Float[Array, "..."]]:
     """Returns per rigid part P `sum_{i<j in P} std_t ||v_ti - v_tj||` in mm (MOJO Tab. 2 "body deformation").
 
@@ -150,7 +150,7 @@ def find_limb_bones(names: Sequence[str]) -> tuple[tuple[str, str], ...]:
 
 
 def bone_deformation(
-    motion: Float[Array, "... t d"], names: Sequence[str], bones: Sequence[tuple[str, str]] | None = None
+    motion: Float[ArrayLike, "... t d"], names: Sequence[str], bones: Sequence[tuple[str, str]] | None = None
 ) -> Float[Array, "..."]:
     """Returns BDF: the std over time of each limb bone's length, summed over the bones, in metres (MOJO Tab. 3).
 
@@ -177,12 +177,12 @@ def find_heels(names: Sequence[str]) -> tuple[str, str]:
 
 
 def foot_skating_ratio(
-    motion: Float[Array, "... t d"],
+    motion: Float[ArrayLike, "... t d"],
     names: Sequence[str],
     *,
     fps: float,
     up_axis: int = 2,
-    ground: float | Float[Array, "..."] = 0.0,
+    ground: float | Float[ArrayLike, "..."] = 0.0,
     max_height: float = 0.05,
     min_speed: float = 0.075,
     heels: tuple[str, str] | None = None,
@@ -211,7 +211,7 @@ def foot_skating_ratio(
 # Per-window evaluation hook.
 
 
-def window_realism(pred: Float[Array, "n k t d"], gt: Float[Array, "n t d"], ds) -> dict[str, np.ndarray]:
+def window_realism(pred: Float[ArrayLike, "n k t d"], gt: Float[ArrayLike, "n t d"], ds) -> dict[str, np.ndarray]:
     """Returns the realism metrics that `ds` supports, per window `(n,)`, each averaged over the K samples.
 
     Point names are `ds.info["point_names"]` when given, else the skeleton's joints without the

@@ -16,8 +16,8 @@ from jaxmotion.data.augment import (
     rotate_yaw_frames,
     yaw_matrix,
 )
-from jaxmotion.data.bvh import euler_matrices
 from jaxmotion.data.windows import to_frames
+from jaxmotion.formats.bvh import euler_matrices
 
 PARENTS = datasets.HUMANEVA_PARENTS
 PAIRS = left_right_pairs(datasets.HUMANEVA_JOINT_NAMES)

@@ -69,8 +69,10 @@ def test_marker_sets_have_the_published_sizes_and_unique_names():
 def test_toy_skeleton_markers_sit_where_the_specs_say():
     body = toy_skeleton("ssm2_67")
     p = body.zero_params()
-    j = dict(zip(body.names, np.asarray(body.joints(p))))
-    m = dict(zip(body.marker_names, np.asarray(body.markers(p))))
+    joints, markers = np.asarray(body.joints(p)), np.asarray(body.markers(p))
+    assert len(body.names) == len(joints) > 0 and len(body.marker_names) == len(markers) > 0
+    j = dict(zip(body.names, joints))
+    m = dict(zip(body.marker_names, markers))
     # Y up, facing +Z, left = +X: ARIEL 19 cm above the head joint, LKNE 5 cm lateral of the knee.
     np.testing.assert_allclose(m["ARIEL"], j["Head"] + [0, 0.19, 0], atol=1e-6)
     np.testing.assert_allclose(m["LKNE"], j["LeftLeg"] + [0.05, 0, 0], atol=1e-6)
@@ -86,6 +88,7 @@ def test_markers_move_rigidly_with_their_bone():
     q = p._replace(pose=pose)
     names = body.marker_names
     m0, m1 = np.asarray(body.markers(p)), np.asarray(body.markers(q))
+    assert len(names) == len(m0) == len(m1) > 0
     moved = {n for n, a, b in zip(names, m0, m1) if np.linalg.norm(a - b) > 1e-6}
     assert moved == {"LSHN", "LANK", "LHEE", "LTOE", "LMT5", "LKNE"} - {"LKNE"}
     # Distances between markers of the shin stay the same (rigid attachment).
@@ -113,7 +116,7 @@ def test_unknown_marker_set_or_missing_joint_is_a_clear_error():
 
 @pytest.mark.skipif(not CMU_01_01.is_file(), reason=f"{CMU_01_01} absent (../shared/data not mounted)")
 def test_skeleton_body_reproduces_bvh_forward_kinematics_on_cmu():
-    from jaxmotion.data.bvh import forward_kinematics, read_bvh
+    from jaxmotion.formats.bvh import forward_kinematics, read_bvh
 
     bvh = read_bvh(CMU_01_01)
     body = skeleton_body_from_bvh(bvh, "cmu41", ref_frame=100)
@@ -208,7 +211,7 @@ def test_smplx_loader_errors_name_the_file_and_key(tmp_path):
 
 
 def test_canonical_frame_undoes_heading_and_position():
-    from jaxmotion.body.marker_data import canonicalise
+    from jaxmotion.data.markers import canonicalise
 
     body = toy_skeleton()
     p = body.zero_params()
@@ -216,6 +219,7 @@ def test_canonical_frame_undoes_heading_and_position():
     q = p._replace(orient=yaw, transl=p.transl + jnp.array([3.0, 0.0, -1.0]))
     canon = [canonicalise(np.asarray(body.markers(x))[None], np.asarray(body.joints(x))[None], body.names)[0] for x in (p, q)]
     np.testing.assert_allclose(canon[0], canon[1], atol=1e-5)
+    assert len(body.marker_names) == len(canon[0]) > 0
     m = dict(zip(body.marker_names, canon[0]))
     assert m["RFWT"][0] > 0.1 > -0.1 > m["LFWT"][0]  # X: left hip -> right hip
     assert m["STRN"][1] > 0 > m["T10"][1]  # Y forward

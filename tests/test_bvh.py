@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jaxmotion.data.bvh import euler_matrices, forward_kinematics, read_bvh
+from jaxmotion.formats.bvh import euler_matrices, forward_kinematics, read_bvh
 
 SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 CMU_01_01 = SHARED_DATA / "cmu-bvh" / "01_01.bvh"

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jaxmotion.data.c3d import read_c3d
+from jaxmotion.formats.c3d import read_c3d
 
 C3D_DIR = Path(__file__).resolve().parents[2] / "shared" / "data" / "vicon-c3d"
 needs_data = pytest.mark.skipif(not C3D_DIR.is_dir(), reason=f"{C3D_DIR} absent (../shared/data not mounted)")

@@ -2,6 +2,8 @@
 
 import json
 
+import optax
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -11,8 +13,7 @@ from jaxmotion import losses
 from jaxmotion.cli import main
 from jaxmotion.models import divsamp
 from jaxmotion.models.divsamp import DivSampConfig
-from jaxmotion.train import divsamp as tds
-from jaxmotion.train.loop import create_state
+from jaxmotion.train.loop import bn_optimizer, create_state, make_bn_train_step
 
 J, T_HIS, T_PRED, B, NDCT, NZ = 4, 5, 7, 3, 4, 6
 D = 3 * J
@@ -140,11 +141,11 @@ def test_bone_lengths():
 
 def test_sampler_step_trains_the_sampler_only_and_updates_its_statistics(models):
     cvae, cv, sampler, sv = models
-    tx = tds.bn_optimizer(tds.optax.adam(1e-2))
+    tx = bn_optimizer(optax.adam(1e-2))
     loss = lambda v, frozen, b, k: divsamp.sampler_loss(
         sampler, v, cvae, frozen, b, k, t_his=T_HIS, k=5, lambda_kl=0.1, lambda_acc=1.0, lambda_div=1.0, eta=5.0
     )
-    step = jax.jit(tds.make_bn_train_step(loss, tx))
+    step = jax.jit(make_bn_train_step(loss, tx))
     state = create_state(dict(sv), tx, frozen=cv)
     batch = _x(b=8, t=T_HIS + T_PRED, seed=3)
     new, metrics = step(state, batch, jax.random.key(0))
@@ -176,7 +177,7 @@ from jaxmotion.config import Config
 from jaxmotion.models.divsamp import DivSampConfig
 def get_config():
     return Config(name="tiny_divsamp", method="divsamp", eval_k=(4,), ckpt_every=2, log_every=2, max_test_windows=12,
-                  eval_batch=12, divsamp=DivSampConfig(hidden=16, nz=8, cvae_residual=1, sampler_residual=0, num_bases=4,
+                  eval_batch=12, method_config=DivSampConfig(hidden=16, nz=8, cvae_residual=1, sampler_residual=0, num_bases=4,
                   base_dim=8, nh=8, cvae_num_steps=4, cvae_batch_size=8, num_steps=NSTEPS, batch_size=4, nk=4,
                   lr_fix_fraction=1.0))
 """
@@ -197,7 +198,8 @@ def test_cli_trains_both_stages_resumes_exactly_and_evaluates(tmp_path):
 
     cfg = load_config(cfg_full)
     prep = experiment.prepare(experiment.load_data(cfg), cfg.max_test_windows)
-    pa, pb = tds.restore(cfg, prep, tmp_path / "a"), tds.restore(cfg, prep, tmp_path / "b")
+    pa, pb = experiment.restore(cfg, prep, tmp_path / "a"), experiment.restore(cfg, prep, tmp_path / "b")
+    assert sorted(pa) == sorted(pb) == ["cvae", "sampler"]
     jax.tree.map(lambda a, b: np.testing.assert_allclose(np.asarray(a), np.asarray(b), atol=1e-6), pa, pb)
     records = json.loads((tmp_path / "a" / "metrics.json").read_text())
     assert {r["method"] for r in records} == {"zero_velocity", "divsamp_cvae", "divsamp"}

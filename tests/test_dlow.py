@@ -52,14 +52,14 @@ def test_decoder_scan_equals_step_by_step_decoding(cvae):
     model, params, x, _ = cvae
     z = jnp.ones((B, 8))
     ys = model.apply(params, x, z, method=dlow.DLowCVAE.decode)
-    h_x = model.apply(params, x, method=dlow.DLowCVAE.encode_x)
-    carry = (model.apply(params, h_x, method=lambda m, h: m.drnn_mlp(h)), x[:, -1])
-    cond = jnp.concatenate([h_x, z], -1)
+    carry, inputs = model.apply(params, x, z, method=dlow.DLowCVAE.decode_init)
     for t in range(T_PRED):
-        carry, y_t = model.apply(params, carry, cond, method=dlow.DLowCVAE.decode_step)
+        step_in = jax.tree.map(lambda a: a[t], inputs)
+        np.testing.assert_array_equal(np.asarray(step_in.z_t), np.asarray(z))  # a vector latent is the same every step
+        carry, y_t = model.apply(params, carry, step_in, method=dlow.DLowCVAE.decode_step)
         np.testing.assert_allclose(np.asarray(ys[:, t]), np.asarray(y_t), atol=1e-5)
         # Autoregressive: the next step is fed the frame just predicted.
-        np.testing.assert_array_equal(np.asarray(carry[1]), np.asarray(y_t))
+        np.testing.assert_array_equal(np.asarray(carry.y_prev), np.asarray(y_t))
 
 
 def test_sampling_k_by_vmap_equals_loop_and_jit_equals_eager(cvae):
@@ -117,3 +117,13 @@ def test_cvae_loss_terms(cvae):
     assert float(loss) == pytest.approx(float(m["recon"] + 1000.0 * m["jump"] + 0.1 * m["kld"]), rel=1e-5)
     y_rec, _, _ = model.apply(params, x, y, jax.random.key(0))
     assert float(m["jump"]) == pytest.approx(float(jnp.sum((x[:, -1] - y_rec[:, 0]) ** 2) / B), rel=1e-5)
+
+
+def test_dlow_cvae_is_the_one_band_case_of_mojos(cvae):
+    from jaxmotion.models import mojo
+
+    model, params, x, y = cvae
+    twin = mojo.MojoCVAE(dim=D, horizon=T_PRED, nz=8, nh_rnn=16, nh_mlp=(20, 12), latent="vector", residual=False)
+    for a, b in zip(model.apply(params, x, y, jax.random.key(4)), twin.apply(params, x, y, jax.random.key(4))):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    assert model.latent_shape == (8,) and dlow.sample_prior is mojo.sample_prior and dlow.decode_k is mojo.decode_k

@@ -4,7 +4,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxmotion.nn.gcn import GCLBlock, GCLStack, GraphConv
+from jaxmotion.nn.gcn import GCLBlock, GCLStack, GraphConv, ResidualGCLBlock
 
 J, F = 5, 4
 
@@ -72,3 +72,20 @@ def test_stack_depth_and_residual():
     n_bn = len([p for p in jax.tree_util.tree_leaves_with_path(v["batch_stats"]) if p[0][-1].key == "mean"])
     assert n_bn == 9  # DivSamp's CVAE encoder / decoder: 9 GCL-BN-Tanh layers
     assert stack.apply(v, h, train=False).shape == (6, J, 8)
+
+
+def test_residual_block_adds_its_input():
+    block = ResidualGCLBlock(F)
+    h = _h(b=8, seed=3)
+    v = block.init(jax.random.key(0), h, train=False)
+    p, st = v["params"], v["batch_stats"]
+    inner = GCLBlock(F).apply({"params": p["gcl_0"], "batch_stats": st["gcl_0"]}, h, train=False)
+    inner = GCLBlock(F).apply({"params": p["gcl_1"], "batch_stats": st["gcl_1"]}, inner, train=False)
+    out = block.apply(v, h, train=False)
+    # H + GCL(GCL(H)): the skip connection, exactly.
+    np.testing.assert_allclose(np.asarray(out), np.asarray(h + inner), atol=1e-6)
+    # The output's Jacobian w.r.t. the input is I + (the two layers' Jacobian): with the inner
+    # layers' weights zeroed only the identity is left.
+    zero = jax.tree_util.tree_map(jnp.zeros_like, p)
+    out0 = block.apply({"params": zero, "batch_stats": st}, h, train=False)
+    np.testing.assert_allclose(np.asarray(out0), np.asarray(h), atol=1e-6)

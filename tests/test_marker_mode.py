@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from jaxmotion import experiment, realism
-from jaxmotion.body.marker_data import canonical_frames, canonicalise, marker_skeleton
 from jaxmotion.body.markersets import LIMB_MARKER_PAIRS
 from jaxmotion.body.skeleton import toy_skeleton
+from jaxmotion.data.markers import canonical_frames, canonicalise, marker_skeleton
 from jaxmotion.data.types import MotionDataset, Sequence
 from jaxmotion.data.windows import TrainSampler, canonicalise_windows
 
@@ -101,16 +101,17 @@ def test_marker_bone_deformation_is_zero_for_a_valid_body_and_the_override_makes
 def test_mojo_with_recursive_projection_keeps_bones_rigid_and_matches_mojo_latents():
     from jaxmotion.config import Config
     from jaxmotion.models.mojo import MojoConfig
-    from jaxmotion.train import mojo as train_mojo
+    from jaxmotion.train.runner import init_state
 
     ds = dataset([seq(i, 40) for i in range(3)], [seq(9, 40)])
     prep = experiment.prepare(ds)
     m = MojoConfig(nz=4, nh_rnn=8, nh_mlp=(8,), q_nh_rnn=8, q_nh_mlp=(8,), baselines=("mojo_proj",), proj_max_steps=5)
-    cfg = Config(method="mojo", mojo=m, eval_k=(3,))
-    _, _, cstate = train_mojo._cvae_state(cfg, ds)
-    _, _, qstate = train_mojo._q_state(cfg, ds, 3, cstate.params)
-    params = {"cvae": cstate.params, "q": {3: qstate.params}}
-    preds = train_mojo.predictors(cfg, ds, params, 3)
+    cfg = Config(method="mojo", method_config=m, eval_k=(3,))
+    params = {}
+    for stage in experiment.get_method("mojo").stages(cfg, prep):
+        params[stage.name] = init_state(stage, params).params
+    assert sorted(params) == ["cvae", "q_k3"]
+    preds = experiment.predictors(cfg, ds, params, 3)
     x = jnp.asarray(prep.x[:2])
     key = jax.random.key(0)
     raw, proj = preds["mojo"](x, key), preds["mojo_proj"](x, key)
@@ -129,13 +130,12 @@ def test_mojo_with_recursive_projection_keeps_bones_rigid_and_matches_mojo_laten
 def test_projection_sampler_needs_a_body():
     from jaxmotion.config import Config
     from jaxmotion.models.mojo import MojoConfig
-    from jaxmotion.train import mojo as train_mojo
 
     ds = dataset([seq(0, 30)], [seq(1, 30)])
     ds.info.pop("body")
     m = MojoConfig(nz=4, nh_rnn=8, nh_mlp=(8,), q_nh_rnn=8, q_nh_mlp=(8,), baselines=("mojo_proj",))
-    cfg = Config(method="mojo", mojo=m, eval_k=(3,))
+    cfg = Config(method="mojo", method_config=m, eval_k=(3,))
     with pytest.raises(ValueError, match="body model"):
-        train_mojo.predictors(cfg, ds, {"cvae": None, "q": {3: None}}, 3)
+        experiment.predictors(cfg, ds, {"cvae": None, "q_k3": None}, 3)
     with pytest.raises(ValueError, match="proj_max_steps"):
         MojoConfig(proj_max_steps=0)

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from jaxtyping import TypeCheckError
 
 from jaxmotion import metrics as M
 
@@ -277,8 +278,10 @@ def test_mode_recall():
     np.testing.assert_allclose(weighted, [0.75, 0.8], atol=1e-6)
     recall, _ = M.mode_recall(pred, modes, probs, valid, 0.5)  # strict: ADE 0.5 is not < 0.5
     np.testing.assert_allclose(recall, [0, 0], atol=1e-6)
-    with pytest.raises(ValueError, match="thr"):
+    with pytest.raises(TypeCheckError, match="parameter 'thr'"):
         M.mode_recall(pred, modes, probs, valid, None)
+    with pytest.raises(ValueError, match="thr"):
+        M.mode_recall(pred, modes, probs, valid, -1.0)
     # A shared (P,) prior and no mask: window 0 now has mode -10 valid too (not reached).
     recall, weighted = M.mode_recall(pred, modes, probs[1], None, 1.0)
     np.testing.assert_allclose(recall, [1 / 3, 2 / 3], atol=1e-6)
@@ -301,21 +304,34 @@ def test_mode_recall_counts_a_sample_for_its_nearest_mode_only():
 
 
 def test_validation_names_the_argument():
+    # Values: hand-written ValueErrors.
     bad = PRED.copy()
     bad[0, 0, 0, 0] = np.nan
     with pytest.raises(ValueError, match="`pred` contains NaN"):
         M.ade(bad, GT)
     with pytest.raises(ValueError, match="`pred` contains NaN"):
         M.evaluate_windows(bad, GT, LAST, thr=THR)
-    with pytest.raises(ValueError, match="`gt` must have 3 dimensions"):
-        M.ade(PRED, GT[0])
-    with pytest.raises(ValueError, match="t_pred of `pred`"):
-        M.fde(PRED, GT[:, :1])
     with pytest.raises(ValueError, match="`last_poses` contains NaN"):
         M.multimodal_gt(np.full((2, 2), np.nan), THR)
     with pytest.raises(ValueError, match="`thr` is required"):
         M.evaluate_windows(PRED, GT, LAST)
-    with pytest.raises(ValueError, match="mm_deviation"):
-        M.evaluate_windows(PRED, GT, LAST, thr=THR, mm_deviation="dlow")
     with pytest.raises(ValueError, match="`pred` has 2 windows"):
+        M.evaluate_windows(iter([PRED[:1], PRED[1:2]]), GT, LAST, thr=THR)
+    with pytest.raises(ValueError, match="`idx` has entries outside"):
+        M.mm_errors(PRED, GT, np.full((3, 1), 3), np.ones((3, 1), bool))
+    # Shapes and literals: the annotations, checked in production too (`jaxtyped` + beartype on the
+    # public entry points), name the argument and the axis sizes already bound.
+    with pytest.raises(TypeCheckError, match=r"(?s)parameter 'gt'.*f32\[2,2\]"):
+        M.ade(PRED, GT[0])
+    with pytest.raises(TypeCheckError, match=r"(?s)parameter 'gt'.*\nt=2\n"):
+        M.fde(PRED, GT[:, :1])
+    with pytest.raises(TypeCheckError, match=r"(?s)parameter 'reference_last_poses'.*\nd=2\n"):
+        M.multimodal_gt(LAST, THR, reference_last_poses=np.zeros((4, 3)))
+    with pytest.raises(TypeCheckError, match=r"(?s)parameter 'gt'.*\nn=2\n"):
         M.evaluate_windows(PRED[:2], GT, LAST, thr=THR)
+    with pytest.raises(TypeCheckError, match="parameter 'mask'"):
+        M.mm_errors(PRED, GT, np.zeros((3, 1), int), np.ones((3, 2), bool))
+    with pytest.raises(TypeCheckError, match="parameter 'mm_deviation'"):
+        M.evaluate_windows(PRED, GT, LAST, thr=THR, mm_deviation="dlow")
+    with pytest.raises(TypeCheckError, match="parameter 'pred'"):
+        M.apd(np.zeros((3, 2, 2), int))

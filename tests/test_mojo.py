@@ -76,7 +76,7 @@ def test_cvae_loss_is_eq1_with_element_means(dct_setup):
     cfg, model, params, *_, x, y = dct_setup
     batch = jnp.concatenate([x, y], axis=1)
     key = jax.random.key(5)
-    loss, m = jax.jit(lambda p, b, k: mojo.cvae_loss(model, p, b, k, t_his=T_HIS, cfg=cfg))(params, batch, key)
+    loss, m = jax.jit(lambda p, b, k: mojo.cvae_loss(model, p, b, k, t_his=T_HIS, **mojo.cvae_loss_weights(cfg)))(params, batch, key)
     y_rec, mu, logvar = jax.jit(model.apply)(params, x, y, key)
     recon = np.mean(np.abs(np.asarray(y_rec - y)))
     vel = np.mean(np.abs(np.diff(np.asarray(y_rec), axis=1) - np.diff(np.asarray(y), axis=1)))
@@ -93,10 +93,10 @@ def test_latent_has_a_gaussian_per_dct_band(setup):
     cfg, model, params, *_, x, y = setup
     mu, logvar = model.apply(params, x, y, method=mojo.MojoCVAE.encode)
     bands = T_PRED if cfg.latent == "dct" else 1
-    assert mu.shape == logvar.shape == (B, bands, NZ)
-    z = _arr(3, (B, bands, NZ))
+    assert mu.shape == logvar.shape == ((B, bands, NZ) if cfg.latent == "dct" else (B, NZ))
+    z = _arr(3, (B,) + model.latent_shape)
     z_t = model.apply(params, z, method=mojo.MojoCVAE.latent_to_time)
-    ref = np.einsum("ct,bcz->btz", np.asarray(dct_matrix(T_PRED)), np.asarray(z)) if bands > 1 else np.repeat(np.asarray(z), T_PRED, 1)
+    ref = np.einsum("ct,bcz->btz", np.asarray(dct_matrix(T_PRED)), np.asarray(z)) if bands > 1 else np.repeat(np.asarray(z)[:, None], T_PRED, 1)
     np.testing.assert_allclose(np.asarray(z_t), ref, atol=1e-5)
 
 
@@ -139,7 +139,7 @@ def test_bad_config_is_rejected_with_the_field_name():
 
 def test_decode_step_in_lax_scan_equals_the_full_decoder(setup):
     cfg, model, params, *_, x, _ = setup
-    z = _arr(4, (B, model.n_bands, NZ))
+    z = _arr(4, (B,) + model.latent_shape)
     full = model.apply(params, x, z, method=mojo.MojoCVAE.decode)
     dp = mojo.decoder_params(model, params)
     carry, inputs = mojo.decode_inputs(dp, x, z)
@@ -153,7 +153,7 @@ def test_decode_step_continues_from_a_replaced_frame(dct_setup):
     # the replaced frame plus the predicted change.
     cfg, model, params, *_, x, _ = dct_setup
     dp = mojo.decoder_params(model, params)
-    carry, inputs = mojo.decode_inputs(dp, x, _arr(4, (B, model.n_bands, NZ)))
+    carry, inputs = mojo.decode_inputs(dp, x, _arr(4, (B,) + model.latent_shape))
     step0 = jax.tree.map(lambda a: a[0], inputs)
     c1, _ = mojo.decode_step(dp, carry, step0)
     fitted = _arr(6, (B, D))
@@ -185,7 +185,7 @@ def test_no_residual_decoder_outputs_the_head_directly():
 
 def test_k_samples_by_vmap_equal_a_loop_over_k(setup):
     cfg, model, params, *_, x, _ = setup
-    z = _arr(7, (B, K, model.n_bands, NZ))
+    z = _arr(7, (B, K) + model.latent_shape)
     ys = jax.jit(lambda p, x, z: mojo.decode_k(model, p, x, z))(params, x, z)
     assert ys.shape == (B, K, T_PRED, D)
     decode = jax.jit(lambda p, x, z: model.apply(p, x, z, method=mojo.MojoCVAE.decode))
@@ -208,7 +208,7 @@ def test_dlow_drives_only_the_lowest_bands(dct_setup):
     key = jax.random.key(3)
     z, a, b = jax.jit(lambda qp: mojo.q_latents(model, q, qp, x, key))(q_params)
     L = q.n_low
-    assert z.shape == (B, K, model.n_bands, NZ) and a.shape == (B, L, K, NZ)
+    assert z.shape == (B, K) + model.latent_shape and a.shape == (B, L, K, NZ)
     # Low bands: one noise draw per window and band, mapped by K affine maps (DLow Eq. (4)).
     eps = (z[:, :, :L] - jnp.swapaxes(b, 1, 2)) / jnp.exp(0.5 * jnp.swapaxes(a, 1, 2))
     np.testing.assert_allclose(np.asarray(eps), np.asarray(jnp.broadcast_to(eps[:, :1], eps.shape)), atol=1e-4)
@@ -236,7 +236,7 @@ def test_q_loss_has_dlow_terms_and_gradients_only_for_q(dct_setup):
     cfg, model, params, q, q_params, x, y = dct_setup
     batch = jnp.concatenate([x, y], axis=1)
     (loss, m), grads = jax.jit(jax.value_and_grad(
-        lambda qp, cp: mojo.q_loss(q, qp, model, cp, batch, jax.random.key(0), t_his=T_HIS, cfg=cfg), argnums=(0, 1), has_aux=True
+        lambda qp, cp: mojo.q_loss(q, qp, model, cp, batch, jax.random.key(0), t_his=T_HIS, **mojo.q_loss_weights(cfg)), argnums=(0, 1), has_aux=True
     ))(q_params, params)
     assert np.isfinite(float(loss)) and 0.0 < float(m["div"]) <= 1.0
     np.testing.assert_allclose(float(loss), float(m["kld"] + 25.0 * m["div"] + 2.0 * m["recon"]), rtol=1e-5)
@@ -253,7 +253,7 @@ from jaxmotion.models.mojo import MojoConfig
 def get_config():
     return Config(name="tiny_mojo", method="mojo", eval_k=(4,), ckpt_every=5, log_every=5,
                   max_test_windows=24, eval_batch=12,
-                  mojo=MojoConfig(nz=4, nh_rnn=16, nh_mlp=(16,), num_steps=10, batch_size=8,
+                  method_config=MojoConfig(nz=4, nh_rnn=16, nh_mlp=(16,), num_steps=10, batch_size=8,
                                   q_nh_rnn=8, q_nh_mlp=(16,), q_num_steps=5, q_batch_size=4,
                                   baselines=("zero_velocity",)))
 """
@@ -273,4 +273,17 @@ def test_mojo_method_trains_resumes_and_reports_realism(tmp_path):
     assert (work / "cvae" / "ckpt").is_dir() and (work / "q_k4" / "ckpt").is_dir()
     with pytest.raises(FileExistsError, match="--resume"):
         main(["train", "--config", str(cfg), "--workdir", str(work)])
+    # Resuming a finished run trains nothing and leaves every stage's parameters as they were.
+    from jaxmotion import experiment
+    from jaxmotion.config import load_config
+
+    c = load_config(cfg)
+    prep = experiment.prepare(experiment.load_data(c), c.max_test_windows)
+    before = experiment.restore(c, prep, work)
+    logs = {s: (work / s / "log.jsonl").read_text() for s in ("cvae", "q_k4")}
     assert main(["train", "--config", str(cfg), "--workdir", str(work), "--resume"]) == 0
+    after = experiment.restore(c, prep, work)
+    assert sorted(before) == sorted(after) == ["cvae", "q_k4"]
+    for a, b in zip(jax.tree.leaves(before), jax.tree.leaves(after)):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    assert logs == {s: (work / s / "log.jsonl").read_text() for s in ("cvae", "q_k4")}

@@ -1,7 +1,5 @@
 """Properties of the synthetic multimodal dataset and its known test modes."""
 
-import time
-
 import numpy as np
 import pytest
 
@@ -43,8 +41,10 @@ def test_dataset_fields_and_sizes(ds, test_wins):
 
 def test_deterministic_given_seed(ds):
     again, other = syn.make_synthetic(0), syn.make_synthetic(1)
+    assert len(ds.train + ds.test) == len(again.train + again.test) > 0
     for a, b in zip(ds.train + ds.test, again.train + again.test):
         np.testing.assert_array_equal(a.positions, b.positions)
+    assert len(ds.info["train_segments"]) == len(again.info["train_segments"]) == len(other.info["train_segments"]) > 0
     for a, b in zip(ds.info["train_segments"], again.info["train_segments"]):
         np.testing.assert_array_equal(a, b)
     assert not np.array_equal(ds.test[0].positions, other.test[0].positions)
@@ -74,7 +74,7 @@ def test_train_segment_frequencies_match_probs(ds):
 
 def test_true_future_is_exactly_the_chosen_mode(ds, modes, test_wins):
     future = test_wins[0][:, ds.t_his :]
-    assert modes.modes.shape == (len(future), 6, 60, 48) and modes.modes.dtype == np.float32
+    assert modes.modes.shape == (len(future), 6, 60, 48) and modes.modes.dtype == np.float32 and len(future) > 0
     equal = np.array([[np.array_equal(m, y) for m in ms] for ms, y in zip(modes.modes, future)])
     assert np.all(equal.sum(1) == 1)
     np.testing.assert_array_equal(equal.argmax(1), modes.true_mode)
@@ -141,12 +141,6 @@ def test_left_right_pairs_mirror_names():
         # Mirroring must map the skeleton onto itself: parents are the same joint or a pair too.
         pl, pr = syn.PARENTS[left], syn.PARENTS[right]
         assert pl == pr or (pl, pr) in syn.LEFT_RIGHT_PAIRS
-
-
-def test_generation_is_fast():
-    t0 = time.perf_counter()
-    syn.test_modes(syn.make_synthetic(3))
-    assert time.perf_counter() - t0 < 5.0
 
 
 def test_test_modes_rejects_foreign_or_edited_data(ds):

@@ -104,7 +104,9 @@ def test_dlow_cvae_loss_gradients_match(dlow_pair):
     tdlow.cvae_loss(tm, tt(batch), tt(eps), t_his=T_HIS, beta=0.1, lambda_v=1000.0)[0].backward()
     # The gradients, read back through the same conversion as the weights, are the same numbers.
     gt = convert.dlow_cvae(tdlow.DLowCVAE(D, T_PRED, nz=NZ, nh_rnn=16, nh_mlp=(20, 12)), g)
-    for (name, a), b in zip(tm.named_parameters(), gt.parameters()):
+    named, grads = list(tm.named_parameters()), list(gt.parameters())
+    assert len(named) == len(grads) > 0
+    for (name, a), b in zip(named, grads):
         rel_close(b.detach().numpy(), a.grad)
 
 
@@ -184,17 +186,20 @@ def test_mojo_cvae_reconstruction_decoding_and_loss_match(mojo_pair):
     mojo, tmojo, jm, p, _, _, tm, _, x, y = mojo_pair
     key = jax.random.key(7)
     jy, jmu, jlv = jm.apply(p, x, y, key)
-    eps = np.asarray(jax.random.normal(key, jmu.shape))
+    # The twin keeps a band axis for the vector latent too: (b, 1, nz) where jaxmotion has (b, nz).
+    banded = lambda a: np.asarray(a).reshape(B, jm.n_bands, jm.nz)  # noqa: E731
+    eps = banded(jax.random.normal(key, jmu.shape))
     with torch.no_grad():
         ty, tmu, tlv = tm(tt(x), tt(y), tt(eps))
-    rel_close(jmu, tmu)
-    rel_close(jlv, tlv)
+    rel_close(banded(jmu), tmu)
+    rel_close(banded(jlv), tlv)
     rel_close(jy, ty)
     z = data(12, B, K, jm.n_bands, jm.nz)
     with torch.no_grad():
-        rel_close(mojo.decode_k(jm, p, x, z), tmojo.decode_k(tm, tt(x), tt(z)))
+        rel_close(mojo.decode_k(jm, p, x, z.reshape((B, K) + jm.latent_shape)), tmojo.decode_k(tm, tt(x), tt(z)))
     batch = np.concatenate([x, y], axis=1)
-    jl, jmet = mojo.cvae_loss(jm, p, batch, key, t_his=T_HIS, cfg=mojo.MojoConfig(nz=jm.nz, latent=jm.latent))
+    weights = mojo.cvae_loss_weights(mojo.MojoConfig(nz=jm.nz, latent=jm.latent))
+    jl, jmet = mojo.cvae_loss(jm, p, batch, key, t_his=T_HIS, **weights)
     with torch.no_grad():
         tl, tmet = tmojo.cvae_loss(tm, tt(batch), tt(eps), t_his=T_HIS)
     rel_close(jl, tl)
@@ -216,7 +221,7 @@ def test_mojo_q_sampling_and_loss_match(mojo_pair):
     rel_close(mojo.sample_mojo(jm, p, jq, qp, x, key), ty)
     batch = np.concatenate([x, y], axis=1)
     cfg = mojo.MojoConfig(nz=jm.nz)
-    jl, jmet = mojo.q_loss(jq, qp, jm, p, batch, key, t_his=T_HIS, cfg=cfg)
+    jl, jmet = mojo.q_loss(jq, qp, jm, p, batch, key, t_his=T_HIS, **mojo.q_loss_weights(cfg))
     with torch.no_grad():
         tl, tmet = tmojo.q_loss(tq, tm, tt(batch), tt(eps), tt(z_high), t_his=T_HIS)
     rel_close(jl, tl)

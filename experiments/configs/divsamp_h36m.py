@@ -21,7 +21,7 @@ def get_config() -> Config:
         eval_k=(50,),
         ckpt_every=5000,
         log_every=500,
-        divsamp=DivSampConfig(
+        method_config=DivSampConfig(
             cvae_num_steps=2000 * (5000 // 64), cvae_batch_size=64, cvae_lr_fix_fraction=100 / 2000, beta=0.5,
             num_steps=1500 * (5000 // 16), batch_size=16, nk=50, lr_fix_fraction=100 / 1500,
             lambda_kl=0.5, lambda_acc=40.0, lambda_div=20.0, eta=25.0, tau=1.0, base_tanh=True,

@@ -16,7 +16,7 @@ def get_config() -> Config:
         method="divsamp",
         dataset="synthetic",
         eval_k=(50, 5),
-        divsamp=DivSampConfig(
+        method_config=DivSampConfig(
             cvae_num_steps=2000, cvae_batch_size=64, cvae_lr_fix_fraction=0.2,
             num_steps=400, batch_size=16, nk=50, lr_fix_fraction=0.2,
             beta=0.5, lambda_kl=0.5, lambda_acc=40.0, lambda_div=20.0, eta=25.0, tau=1.0,

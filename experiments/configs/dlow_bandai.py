@@ -24,16 +24,19 @@
 # At this budget the decoder is not trained enough to be both diverse and plausible away from its
 # posterior; longer training (the paper's 500 epochs) is the fix, and this config is the honest
 # plausible point. DLow beats zero-velocity on ADE/FDE and its own CVAE on APD.
-from jaxmotion.config import Config, CVAEConfig, DLowConfig
+from jaxmotion.config import Config
+from jaxmotion.models.dlow import CVAEConfig, DLowConfig, QConfig
 
 
 def get_config() -> Config:
     return Config(
         name="dlow_bandai",
         dataset="../shared/data/bandai-namco-2",
-        cvae=CVAEConfig(num_steps=2000, batch_size=64, beta=0.3),
-        # Q lr 5e-4 instead of the paper's 1e-4: 400 steps instead of ~15k.
-        dlow=DLowConfig(num_steps=400, batch_size=16, lr=5e-4),
+        method_config=DLowConfig(
+            cvae=CVAEConfig(num_steps=2000, batch_size=64, beta=0.3),
+            # Q lr 5e-4 instead of the paper's 1e-4: 400 steps instead of ~15k.
+            q=QConfig(num_steps=400, batch_size=16, lr=5e-4),
+        ),
         eval_k=(50,),
         ckpt_every=500,
     )

@@ -22,7 +22,7 @@ def get_config() -> Config:
         dataset="../shared/data/bandai-namco-2",
         eval_k=(50,),
         ckpt_every=500,
-        mojo=MojoConfig(
+        method_config=MojoConfig(
             variant="MOJO", latent="dct", nz=16, residual=True, loss="mojo", alpha=3.0, beta=1.0, robust_kld=True,
             num_steps=2000, batch_size=64, q_num_steps=400, q_batch_size=16, q_lr=5e-4,
             baselines=("zero_velocity", "mojo_prior"),

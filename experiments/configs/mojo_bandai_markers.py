@@ -10,7 +10,7 @@
 # 128 windows, same latents: mojo BDF 0.165 m, head/lower torso 154/142 mm; mojo_proj BDF 3e-7 m, 0/0 mm,
 # APD 26.9 -> 20.0, ADE 0.600 -> 0.665 (experiments/README.md, "MOJO with recursive projection").
 """MOJO on Bandai-Namco-2 as body-surface markers: the Bandai skeleton body carrying the `bandai`
-(CMU-41) markers, driven by every clip (`jaxmotion.body.marker_data.load_bandai_markers`); global
+(CMU-41) markers, driven by every clip (`jaxmotion.data.markers.load_bandai_markers`); global
 marker positions in the canonical frame of each window's first frame (PROTOCOL sec. 4), D = 123.
 Same split, rate and window lengths as `mojo_bandai.py` (15 -> 60 frames at 30 fps) and the same
 model and budget. Recursive projection (`mojo_proj`) is evaluated by `experiments/mojo_projection_table.py`
@@ -28,7 +28,7 @@ def get_config() -> Config:
         data_options={"markers": "bandai"},
         eval_k=(50,),
         ckpt_every=500,
-        mojo=MojoConfig(
+        method_config=MojoConfig(
             variant="MOJO", latent="dct", nz=16, residual=True, loss="mojo", alpha=3.0, beta=1.0, robust_kld=True,
             num_steps=2000, batch_size=64, q_num_steps=400, q_batch_size=16, q_lr=5e-4,
             baselines=("zero_velocity", "mojo_prior"),

@@ -16,7 +16,7 @@ def get_config() -> Config:
         dataset="../shared/data/bandai-namco-2",
         eval_k=(50,),
         ckpt_every=500,
-        mojo=MojoConfig(
+        method_config=MojoConfig(
             variant="MOJO-DCT", latent="vector", nz=128, residual=True, loss="mojo", alpha=3.0, beta=0.1, robust_kld=False,
             num_steps=2000, batch_size=64, q_num_steps=400, q_batch_size=16, q_lr=5e-4,
             baselines=(),

@@ -16,7 +16,7 @@ def get_config() -> Config:
         dataset="synthetic",
         eval_k=(50, 5),
         ckpt_every=500,
-        mojo=MojoConfig(
+        method_config=MojoConfig(
             variant="VAE+DCT", latent="dct", nz=16, residual=False, loss="dlow", beta=0.1, robust_kld=False,
             lambda_v=1000.0, num_steps=2000, batch_size=64, q_num_steps=400, q_batch_size=16, q_lr=5e-4,
             baselines=("mojo_prior",),

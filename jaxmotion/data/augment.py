@@ -13,7 +13,7 @@ default), Human3.6M and HumanEva-I world coordinates are Z-up (`up_axis=2`). Eve
 from __future__ import annotations
 
 import re
-from typing import Sequence
+from collections.abc import Sequence
 
 import jax.numpy as jnp
 from jax import Array

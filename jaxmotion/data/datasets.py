@@ -19,14 +19,14 @@ import os
 import re
 import shutil
 import tarfile
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
 from jaxmotion.data.augment import left_right_pairs
-from jaxmotion.data.bvh import Bvh, forward_kinematics, read_bvh
 from jaxmotion.data.types import MotionDataset, Sequence, Skeleton
+from jaxmotion.formats.bvh import Bvh, forward_kinematics, guess_scale, is_ground_node, read_bvh
 
 # ----------------------------------------------------------------------------------------------
 # Human3.6M (VideoPose3D's data_3d_h36m.npz, metres, Z up)
@@ -83,11 +83,8 @@ BANDAI_TRAIN_STYLES = ("active", "exhausted", "feminine", "masculine")
 BANDAI_TEST_STYLES = ("normal",)
 # PROTOCOL sec. 3, shared by the joint (`load_bandai`) and marker (`load_bandai_markers`) datasets.
 BANDAI_PROTOCOL = {"fps": 30.0, "t_his": 15, "t_pred": 60, "mm_threshold": 0.5}
-_BANDAI_NAME = re.compile(r"^dataset-2_(?P<content>[^_]+)_(?P<style>[^_]+)_(?P<id>\d+)$")
-
-# Skeletons whose units cannot be guessed from their size (see `guess_scale`).
-CMU_SCALE = 0.056444
-_KNOWN_SCALES = {frozenset({"Hips", "LHipJoint", "RHipJoint", "LowerBack"}): CMU_SCALE}
+# A clip's file stem: `dataset-2_{content}_{style}_{id}`.
+BANDAI_NAME = re.compile(r"^dataset-2_(?P<content>[^_]+)_(?P<style>[^_]+)_(?P<id>\d+)$")
 
 
 def default_cache_dir() -> Path:
@@ -233,8 +230,8 @@ def load_bandai(root: str | os.PathLike, cache_dir: str | os.PathLike | None = N
     `subject` is `"unknown"`. `joint_Root` (a ground node) is dropped; cm -> m.
     """
     root = Path(root).expanduser()
-    clip_dir = _bandai_clip_dir(root, cache_dir)
-    files = sorted(p for p in clip_dir.iterdir() if p.suffix == ".bvh" and _BANDAI_NAME.match(p.stem))
+    clip_dir = bandai_clip_dir(root, cache_dir)
+    files = sorted(p for p in clip_dir.iterdir() if p.suffix == ".bvh" and BANDAI_NAME.match(p.stem))
     if not files:
         raise ValueError(f"{clip_dir}: no Bandai-Namco-2 clips (dataset-2_{{content}}_{{style}}_{{id}}.bvh)")
     contents, styles = _bandai_labels(root, clip_dir)
@@ -242,7 +239,7 @@ def load_bandai(root: str | os.PathLike, cache_dir: str | os.PathLike | None = N
     train, test, skipped = [], [], 0
     skeleton = None
     for f in files:
-        m = _BANDAI_NAME.match(f.stem)
+        m = BANDAI_NAME.match(f.stem)
         content, style = m["content"], m["style"]
         if contents is not None:
             _check_bandai_json(f, content, style, contents, styles)
@@ -279,7 +276,7 @@ def load_bandai(root: str | os.PathLike, cache_dir: str | os.PathLike | None = N
     )
 
 
-def _bandai_clip_dir(root: Path, cache_dir: str | os.PathLike | None) -> Path:
+def bandai_clip_dir(root: Path, cache_dir: str | os.PathLike | None) -> Path:
     """Returns the folder of extracted clips, extracting the tarball into the cache if needed."""
     tarball = root / BANDAI_TARBALL
     if not tarball.is_file():
@@ -358,8 +355,8 @@ def load_bvh_folder(
 
     All joints are kept except a ground node: a root with a zero offset, exactly one child and
     constant channels (e.g. Bandai's `joint_Root`). `scale` converts file units to metres; None
-    means `guess_scale` (CMU's cgspeed skeleton is recognised, 0.056444 m/unit). `split(file)`
-    returns "train", "test" or None (skip the file); by default every file is test. Every
+    means `formats.bvh.guess_scale` (CMU's cgspeed skeleton is recognised, 0.056444 m/unit).
+    `split(file)` returns "train", "test" or None (skip the file); by default every file is test. Every
     `downsample`-th frame is kept. `t_his` / `t_pred` default to 0.5 s / 2 s at the resulting
     frame rate, as for Human3.6M and Bandai. A sequence's subject is the file stem before its first
     `_` (CMU's `SS_TT` naming) and its action the whole stem. All files must share one skeleton
@@ -383,7 +380,7 @@ def load_bvh_folder(
             continue
         bvh = read_bvh(f)
         file_scale = guess_scale(bvh) if scale is None else scale
-        names, parents, positions = _bvh_positions(bvh, file_scale, drop_root=_is_ground_node(bvh))
+        names, parents, positions = _bvh_positions(bvh, file_scale, drop_root=is_ground_node(bvh))
         positions = positions[::downsample]
         f_fps = bvh.fps / downsample
         if skeleton is None:
@@ -411,37 +408,6 @@ def load_bvh_folder(
     )
 
 
-def guess_scale(bvh: Bvh) -> float:
-    """Returns metres per file unit: a known skeleton's, else a power of ten from the body size.
-
-    The size is the largest distance between two body joints in the rest pose (offsets only); a human
-    measures 1-2.5 m, so a size in [0.5, 5) means metres, [50, 500) centimetres, [500, 5000)
-    millimetres. Anything else (e.g. inches) needs an explicit scale.
-    """
-    names = set(bvh.names)
-    for known, s in _KNOWN_SCALES.items():
-        if known <= names:
-            return s
-    rest = np.zeros((bvh.num_joints, 3))
-    for j, p in enumerate(bvh.parents):
-        rest[j] = bvh.offsets[j] + (rest[p] if p >= 0 else 0.0)
-    if _is_ground_node(bvh):
-        rest = rest[1:]  # the body's offset from a ground node says nothing about its size
-    size = float(np.max(np.linalg.norm(rest[:, None] - rest[None], axis=-1)))
-    for lo, s in ((0.5, 1.0), (50.0, 0.01), (500.0, 0.001)):
-        if lo <= size < 10 * lo:
-            return s
-    raise ValueError(f"{bvh.path}: cannot guess units from a rest-pose size of {size:.3g}; pass scale=")
-
-
-def _is_ground_node(bvh: Bvh) -> bool:
-    """Returns whether the root is a ground node: zero offset, one child, constant channels."""
-    one_child = sum(p == 0 for p in bvh.parents) == 1
-    root_values = bvh.motion[:, : len(bvh.channels[0])]
-    still = root_values.size == 0 or bool(np.all(root_values == root_values[:1]))
-    return one_child and bool(np.all(bvh.offsets[0] == 0)) and still
-
-
 def _bvh_positions(
     bvh: Bvh, scale: float, drop_root: bool
 ) -> tuple[tuple[str, ...], tuple[int, ...], np.ndarray]:
@@ -464,7 +430,7 @@ def load_dataset(spec: str | os.PathLike, **options) -> MotionDataset:
     - `*.npz`: Human3.6M if `positions_3d` has subject keys `S1`, `S9`, ..., HumanEva-I if it has
       `Train/S1`, `Validate/S1`, ...
     - a folder with `bandai2_dev.tar.xz` or `dataset-2_*.bvh` clips: `load_bandai`; with the option
-      `markers="bandai"` (a marker set name), `jaxmotion.body.marker_data.load_bandai_markers`.
+      `markers="bandai"` (a marker set name), `jaxmotion.data.markers.load_bandai_markers`.
     - another folder with `.bvh` files: `load_bvh_folder`.
     """
     path = Path(spec).expanduser()
@@ -484,7 +450,9 @@ def load_dataset(spec: str | os.PathLike, **options) -> MotionDataset:
     if path.is_dir():
         if (path / BANDAI_TARBALL).is_file() or any(path.glob("dataset-2_*.bvh")):
             if "markers" in options:
-                from jaxmotion.body.marker_data import load_bandai_markers
+                # Imported here: `markers` imports this module (the Bandai protocol and clip folder), and it
+                # pulls in `jaxmotion.body` and jax, which the joint loaders do not need.
+                from jaxmotion.data.markers import load_bandai_markers
 
                 options = dict(options)
                 return load_bandai_markers(path, options.pop("markers"), **options)

@@ -362,7 +362,7 @@ def make_synthetic(
         "test_segments": test_labels,
         "left_right_pairs": LEFT_RIGHT_PAIRS,
     }
-    return MotionDataset("synthetic", SKELETON, FPS, T_HIS, T_PRED, MM_THRESHOLD, train, test, info)
+    return MotionDataset("synthetic", SKELETON, FPS, T_HIS, T_PRED, MM_THRESHOLD, train, test, info, known_modes=test_modes)
 
 
 def test_modes(dataset: MotionDataset) -> TestModes:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from typing import Any, Callable
 
 import numpy as np
 
@@ -59,6 +60,10 @@ class MotionDataset:
     train: list[Sequence]
     test: list[Sequence]
     info: dict = dataclasses.field(default_factory=dict)
+    # A dataset that knows every test window's possible futures (the synthetic data) gives a
+    # function `dataset -> (modes (N, P, t_pred, D), probs (P,), true_mode (N,), boundary (N,))`
+    # in test-window order; evaluation then reports mode recall.
+    known_modes: Callable[["MotionDataset"], Any] | None = None
 
     @property
     def t_total(self) -> int:

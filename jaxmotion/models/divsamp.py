@@ -38,6 +38,7 @@ from jaxtyping import Array, Float
 from jaxmotion.dct import dct, idct
 from jaxmotion.gumbel import COEFFICIENT_KINDS, sample_coefficients
 from jaxmotion.losses import dlow_diversity, hinge_diversity, kld_normal
+from jaxmotion.models.cvae import reparameterise, vmap_k
 from jaxmotion.nn.gcn import GCLStack, GraphConv
 
 PI_KINDS = ("uniform", "learned_shared", "learned_per_sample")
@@ -46,7 +47,7 @@ DIVERSITY_KINDS = ("hinge", "exp")
 
 @dataclasses.dataclass
 class DivSampConfig:
-    """DivSamp's architecture and both training stages (`Config.divsamp`).
+    """DivSamp's architecture and both training stages (`Config.method_config` of method "divsamp").
 
     Defaults are the authors' Human3.6M release (`h36m/configs/config_cvae.py`,
     `config_diverse_sampling.py`) except the step counts and batch sizes, which the configs
@@ -187,8 +188,7 @@ class DivSampCVAE(nn.Module):
     def __call__(self, cx, cw, key: jax.Array | None = None, *, train: bool):
         """Returns `(nodes_rec, mu, logvar)`; z by reparameterisation when `key` is given, else z = mu."""
         mu, logvar = self.encode(cx, cw, train=train)
-        z = mu if key is None else mu + jnp.exp(0.5 * logvar) * jax.random.normal(key, mu.shape)
-        return self.decode(cx, z, train=train), mu, logvar
+        return self.decode(cx, reparameterise(mu, logvar, key), train=train), mu, logvar
 
 
 class GammaHead(nn.Module):
@@ -273,7 +273,7 @@ def decode_k(cvae: DivSampCVAE, variables, cx: Float[Array, "b j c"], z: Float[A
         nodes = cvae.apply(variables, cx, z_k, train=False, method=DivSampCVAE.decode)
         return from_nodes(nodes, t_his + t_pred)[:, t_his:]
 
-    return jnp.swapaxes(jax.vmap(one, in_axes=1)(z), 0, 1)
+    return vmap_k(one, z)
 
 
 def sample_prior(cvae: DivSampCVAE, variables, x: Float[Array, "b t_his d"], key, k: int, *, t_pred: int):

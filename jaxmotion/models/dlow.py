@@ -3,11 +3,14 @@
 Architecture follows the paper and its released configuration for Human3.6M (`h36m_nsamp50`):
 GRU encoders with 128 hidden units over X and Y, a tanh MLP (300, 200) to `mu`/`logvar`
 (nz = 128), a decoder GRU initialised by an MLP of `h_x` whose input at each step is
-`[h_x, z, y_{t-1}]` (y_0 = the last observed pose), then MLP (300, 200) and a linear output.
+`[h_x, z, y_{t-1}]` (y_0 = the last observed pose), then MLP (300, 200) and a linear output:
+the vector-latent case of the CVAE in `models/cvae.py`, which MOJO shares.
 The Q network ("NFDiag") encodes X with its own GRU and predicts K affine maps `z_k = a_k * eps + b_k`.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import flax.linen as nn
 import jax
@@ -15,110 +18,122 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from jaxmotion.losses import dlow_diversity, kld_affine, kld_normal, min_of_k_sq_error
-from jaxmotion.nn.gru import GRU, GRUCell, gru_update
+from jaxmotion.models.cvae import GRUCVAE, cvae_objective, decode_k, sample_prior
+from jaxmotion.nn.gru import GRU
 from jaxmotion.nn.mlp import MLP
 
+__all__ = ["CVAEConfig", "QConfig", "DLowConfig", "DLowCVAE", "DLowQ", "decode_k", "sample_prior", "sample_dlow",
+           "cvae_loss", "dlow_loss"]
 
-class DLowCVAE(nn.Module):
-    """The DLow CVAE over frame vectors `(batch, time, dim)`; `__call__` returns `(y_rec, mu, logvar)`."""
 
-    dim: int
-    horizon: int
+@dataclasses.dataclass
+class CVAEConfig:
+    """DLow's CVAE stage (`h36m_nsamp50.yml`: nz 128, beta 0.1, lambda_v 1000, lr 1e-3, batch 64)."""
+
     nz: int = 128
     nh_rnn: int = 128
     nh_mlp: tuple[int, ...] = (300, 200)
-
-    def setup(self):
-        self.x_rnn = GRU(self.nh_rnn)
-        self.e_rnn = GRU(self.nh_rnn)
-        self.e_mlp = MLP(self.nh_mlp)
-        self.e_mu = nn.Dense(self.nz)
-        self.e_logvar = nn.Dense(self.nz)
-        self.drnn_mlp = MLP(tuple(self.nh_mlp) + (self.nh_rnn,))
-        self.d_cell = GRUCell(self.nh_rnn)
-        self.d_mlp = MLP(self.nh_mlp)
-        self.d_out = nn.Dense(self.dim)
-
-    def encode_x(self, x: Float[Array, "b t_his d"]) -> Float[Array, "b h"]:
-        """Returns the last hidden state of the past encoder GRU."""
-        return self.x_rnn(x)[:, -1]
-
-    def encode(self, x, y) -> tuple[Float[Array, "b z"], Float[Array, "b z"]]:
-        """Returns `(mu, logvar)` of q(z | X, Y)."""
-        h = jnp.concatenate([self.encode_x(x), self.e_rnn(y)[:, -1]], axis=-1)
-        h = self.e_mlp(h)
-        return self.e_mu(h), self.e_logvar(h)
-
-    def decode_step(self, carry, cond):
-        """Returns `((h, y_t), y_t)`: one decoder step given `cond = [h_x, z]`."""
-        h, y_prev = carry
-        h = self.d_cell(h, jnp.concatenate([cond, y_prev], axis=-1))
-        y = self.d_out(self.d_mlp(h))
-        return (h, y), y
-
-    def decode(self, x: Float[Array, "b t_his d"], z: Float[Array, "b z"], h_x=None) -> Float[Array, "b t_pred d"]:
-        """Returns the decoded future `(batch, horizon, dim)` for latents `z` (pass `h_x` to reuse it).
-
-        Computes exactly `decode_step` `horizon` times, with the conditioning's share of the GRU
-        input gates, `[h_x, z] @ W_ih[:n_cond]`, computed once instead of at every step: it does
-        not change over time, and it is 256 of the 316 input columns (a third of the decoder's FLOPs).
-        """
-        if h_x is None:
-            h_x = self.encode_x(x)
-        cond = jnp.concatenate([h_x, z], axis=-1)
-        carry = (self.drnn_mlp(h_x), x[:, -1])
-        if self.is_initializing():
-            self.decode_step(carry, cond)  # creates the decoder's parameters
-        w = self.d_cell.variables["params"]
-        n_cond = cond.shape[-1]
-        gi_cond = cond @ w["weight_ih"][:n_cond] + w["bias_ih"]
-        w_y = w["weight_ih"][n_cond:]
-
-        def step(mdl, c, _):
-            h, y_prev = c
-            h = gru_update(gi_cond + y_prev @ w_y, h @ w["weight_hh"] + w["bias_hh"], h)
-            y = mdl.d_out(mdl.d_mlp(h))
-            return (h, y), y
-
-        scan = nn.scan(step, variable_broadcast="params", split_rngs={"params": False}, length=self.horizon, out_axes=1)
-        _, ys = scan(self, carry, None)
-        return ys
-
-    def __call__(self, x, y, key=None):
-        """Returns `(y_rec, mu, logvar)`; samples z by reparameterisation when `key` is given, else z = mu."""
-        mu, logvar = self.encode(x, y)
-        z = mu if key is None else mu + jnp.exp(0.5 * logvar) * jax.random.normal(key, mu.shape)
-        return self.decode(x, z), mu, logvar
+    lr: float = 1e-3
+    batch_size: int = 64
+    num_steps: int = 2000
+    lr_fix_fraction: float = 0.2  # DLow keeps lr constant for 100 of 500 epochs, then decays linearly to 0
+    beta: float = 0.1
+    lambda_v: float = 1000.0
 
 
-class DLowQ(nn.Module):
-    """DLow's Q network ("NFDiag"): returns `(z (b, nk, nz), a, b)` with `z_k = a_k * eps + b_k`."""
+@dataclasses.dataclass
+class QConfig:
+    """DLow's Q-network stage (`h36m_nsamp50.yml`: d_scale 100, lambda_j 25, lambda_recon 2, lr 1e-4)."""
+
+    nh_rnn: int = 128
+    nh_mlp: tuple[int, ...] = (1024, 512)
+    lr: float = 1e-4
+    batch_size: int = 32
+    num_steps: int = 1000
+    lr_fix_fraction: float = 0.2
+    d_scale: float = 100.0
+    lambda_j: float = 25.0
+    lambda_recon: float = 2.0
+    lambda_kl: float = 1.0
+
+
+def _synthetic_cvae() -> CVAEConfig:
+    # The built-in job must finish in 10 minutes on 2 CPU cores, so it trains ~2k CVAE steps
+    # where DLow trains ~39k. At that budget beta = 0.1 leaves the informative latent dimensions
+    # with tiny posterior variances, and latents near the prior decode to broken bodies (on the
+    # synthetic data: CVAE ADE-m 0.79 m with beta 0.1 vs 0.36 m with beta 1; DLow's Q network then
+    # finds exactly those latents). beta = 1 keeps prior samples on the decoder's training distribution.
+    return CVAEConfig(num_steps=2000, beta=1.0)
+
+
+def _synthetic_q() -> QConfig:
+    # The Q network's lr is raised from 1e-4 for the same reason (250 vs ~15k steps).
+    return QConfig(num_steps=250, batch_size=16, lr=5e-4)
+
+
+@dataclasses.dataclass
+class DLowConfig:
+    """DLow's settings (`Config.method_config` of method "dlow"): the CVAE stage and the Q stage (one Q network per K).
+
+    The sections' own defaults are the paper's; the defaults here are the built-in synthetic job's budget.
+    """
+
+    cvae: CVAEConfig = dataclasses.field(default_factory=_synthetic_cvae)
+    q: QConfig = dataclasses.field(default_factory=_synthetic_q)
+
+
+class DLowCVAE(GRUCVAE):
+    """The DLow CVAE over frame vectors `(batch, time, dim)`: a `GRUCVAE` with one `(nz,)` latent, no residual."""
 
     nz: int = 128
-    nk: int = 50
+    latent: str = "vector"
+    residual: bool = False
+
+
+def cvae_model(c: CVAEConfig, dim: int, horizon: int) -> DLowCVAE:
+    """Returns the CVAE module a `CVAEConfig` describes."""
+    return DLowCVAE(dim=dim, horizon=horizon, nz=c.nz, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp))
+
+
+class QTrunk(nn.Module):
+    """Returns `(a, b)` each `(batch, n_heads, nk, nz)`: DLow's Q network without the affine map (GRU, MLP, heads).
+
+    MOJO's per-band DLow uses `n_heads` = L bands (unshared heads on one trunk, the release's
+    `NFDiag(freq_separate=True)`); DLow's Q network is the one-head case.
+    """
+
+    nz: int
+    nk: int
+    n_heads: int = 1
     nh_rnn: int = 128
     nh_mlp: tuple[int, ...] = (1024, 512)
 
     @nn.compact
-    def __call__(self, x: Float[Array, "b t_his d"], eps: Float[Array, "b z"]):
+    def __call__(self, x: Float[Array, "b t_his d"]):
         h = GRU(self.nh_rnn, name="x_rnn")(x)[:, -1]
         h = MLP(self.nh_mlp, name="mlp")(h)
-        a = nn.Dense(self.nz * self.nk, name="head_A")(h).reshape(-1, self.nk, self.nz)
-        b = nn.Dense(self.nz * self.nk, name="head_b")(h).reshape(-1, self.nk, self.nz)
+        # One Dense with n_heads * nk * nz outputs is exactly n_heads unshared linear heads.
+        shape = (-1, self.n_heads, self.nk, self.nz)
+        a = nn.Dense(self.n_heads * self.nk * self.nz, name="head_A")(h).reshape(shape)
+        b = nn.Dense(self.n_heads * self.nk * self.nz, name="head_b")(h).reshape(shape)
+        return a, b
+
+
+class DLowQ(QTrunk):
+    """DLow's Q network ("NFDiag"): returns `(z (b, nk, nz), a, b)` with `z_k = a_k * eps + b_k`."""
+
+    nz: int = 128
+    nk: int = 50
+
+    def __call__(self, x: Float[Array, "b t_his d"], eps: Float[Array, "b z"]):
+        a, b = super().__call__(x)
+        a, b = a[:, 0], b[:, 0]
         return a * eps[:, None, :] + b, a, b
 
 
-def decode_k(cvae: DLowCVAE, params, x: Float[Array, "b t_his d"], z: Float[Array, "b k z"]) -> Float[Array, "b k t_pred d"]:
-    """Returns the K futures decoded from latents `z` (vmapped over K; the past is encoded once)."""
-    h_x = cvae.apply(params, x, method=DLowCVAE.encode_x)
-    dec = lambda z_k: cvae.apply(params, x, z_k, h_x, method=DLowCVAE.decode)
-    return jnp.swapaxes(jax.vmap(dec, in_axes=1)(z), 0, 1)
-
-
-def sample_prior(cvae: DLowCVAE, params, x, key: jax.Array, k: int) -> Float[Array, "b k t_pred d"]:
-    """Returns K futures with latents drawn i.i.d. from N(0, I): the plain CVAE baseline."""
-    z = jax.random.normal(key, (x.shape[0], k, cvae.nz))
-    return decode_k(cvae, params, x, z)
+def q_model(c: QConfig, nz: int, nk: int) -> DLowQ:
+    """Returns the Q network of a `QConfig` for `nk` samples of an `nz`-dimensional latent."""
+    return DLowQ(nz=nz, nk=nk, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp))
 
 
 def sample_dlow(cvae: DLowCVAE, cvae_params, q: DLowQ, q_params, x, key: jax.Array) -> Float[Array, "b nk t_pred d"]:
@@ -129,18 +144,12 @@ def sample_dlow(cvae: DLowCVAE, cvae_params, q: DLowQ, q_params, x, key: jax.Arr
 
 
 def cvae_loss(cvae: DLowCVAE, params, batch: Float[Array, "b t d"], key, *, t_his: int, beta: float, lambda_v: float):
-    """Returns `(loss, metrics)`: DLow's CVAE objective, summed over time and dims, averaged over the batch.
-
-    loss = ||Y_rec - Y||^2 + lambda_v ||x_{t_his} - y_rec_1||^2 + beta KL(q(z|X,Y) || N(0,I)).
-    The middle term penalises a jump between the last observed and the first predicted frame.
-    """
+    """Returns `(loss, metrics)`: DLow's CVAE objective (`models.cvae.cvae_objective`), KL summed per window."""
     x, y = batch[:, :t_his], batch[:, t_his:]
     y_rec, mu, logvar = cvae.apply(params, x, y, key)
-    b = batch.shape[0]
-    recon = jnp.sum((y_rec - y) ** 2) / b
-    jump = jnp.sum((x[:, -1] - y_rec[:, 0]) ** 2) / b
-    kld = jnp.sum(kld_normal(mu, logvar)) / b
-    return recon + lambda_v * jump + beta * kld, {"recon": recon, "jump": jump, "kld": kld}
+    kld = jnp.sum(kld_normal(mu, logvar)) / batch.shape[0]
+    loss, metrics = cvae_objective(y_rec, y, x[:, -1], kld, beta=beta, lambda_v=lambda_v)
+    return loss, dict(metrics, kld=kld)
 
 
 def dlow_loss(

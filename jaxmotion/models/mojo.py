@@ -1,5 +1,6 @@
 """MOJO (Zhang, Black & Tang, CVPR 2021, "We are More than Our Joints"): a CVAE with a latent DCT space.
 
+The CVAE is `models.cvae.GRUCVAE` (DLow's CVAE is its one-band case) with MOJO's defaults.
 Matched against the authors' release (`yz-cnsdqz/MOJO-release`: `models/models_mojo.py` class
 `VAEDCT` and `NFDiag(freq_separate=True)`, `experiments/train_MOJO_vae.py`,
 `experiments/train_MOJO_dlow.py`, config `amass_mojo_f9_nsamp50.yml`):
@@ -34,7 +35,7 @@ step.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, NamedTuple
+from typing import Any
 
 import flax.linen as nn
 import jax
@@ -42,10 +43,12 @@ import jax.numpy as jnp
 from flax import struct
 from jaxtyping import Array, Float
 
-from jaxmotion.dct import dct, idct
 from jaxmotion.losses import dlow_diversity, kld_normal, min_of_k_sq_error, robust_kld
-from jaxmotion.nn.gru import GRU, GRUCell, gru_update
-from jaxmotion.nn.mlp import MLP
+from jaxmotion.models.cvae import DecodeCarry, DecodeInputs, GRUCVAE, cvae_objective, decode_k, sample_prior
+from jaxmotion.models.dlow import QTrunk
+
+__all__ = ["MojoConfig", "MojoCVAE", "MojoQ", "DecodeCarry", "DecodeInputs", "decode_k", "sample_prior", "q_latents",
+           "sample_mojo", "cvae_loss", "q_loss", "decoder_params", "decode_inputs", "decode_step", "latent_spectrum"]
 
 
 @dataclasses.dataclass
@@ -114,120 +117,15 @@ def num_low_bands(cfg: MojoConfig, horizon: int) -> int:
     return max(1, round(cfg.dlow_band_fraction * num_bands(cfg.latent, horizon)))
 
 
-class DecodeCarry(NamedTuple):
-    """Decoder state between steps: GRU hidden state `h (b, nh)` and the previous frame `y_prev (b, D)`."""
+class MojoCVAE(GRUCVAE):
+    """MOJO's CVAE over frame vectors `(batch, time, dim)`: a `GRUCVAE` with a DCT latent and a residual decoder.
 
-    h: Float[Array, "b h"]
-    y_prev: Float[Array, "b d"]
-
-
-class DecodeInputs(NamedTuple):
-    """Per-step decoder inputs: the past code `h_x (b, nh)` and the time-domain latent `z_t (b, nz)`."""
-
-    h_x: Float[Array, "b h"]
-    z_t: Float[Array, "b z"]
-
-
-class MojoCVAE(nn.Module):
-    """MOJO's CVAE over frame vectors `(batch, time, dim)`; `__call__` returns `(y_rec, mu, logvar)`.
-
-    `mu`, `logvar` are `(batch, n_bands, nz)`: `n_bands = horizon` DCT bands (latent "dct") or 1.
+    `mu`, `logvar` are `(batch, horizon, nz)`, one Gaussian per DCT band ("dct"), or `(batch, nz)` ("vector", MOJO-DCT).
     """
 
-    dim: int
-    horizon: int
     nz: int = 16
-    nh_rnn: int = 128
-    nh_mlp: tuple[int, ...] = (300, 200)
     latent: str = "dct"
     residual: bool = True
-
-    @property
-    def n_bands(self) -> int:
-        return num_bands(self.latent, self.horizon)
-
-    def setup(self):
-        self.x_rnn = GRU(self.nh_rnn)
-        self.e_rnn = GRU(self.nh_rnn)
-        self.e_mlp = MLP(self.nh_mlp)
-        self.e_mu = nn.Dense(self.nz)
-        self.e_logvar = nn.Dense(self.nz)
-        self.drnn_mlp = MLP(tuple(self.nh_mlp) + (self.nh_rnn,))
-        self.d_cell = GRUCell(self.nh_rnn)
-        self.d_mlp = MLP(self.nh_mlp)
-        self.d_out = nn.Dense(self.dim)
-
-    def encode_x(self, x: Float[Array, "b t_his d"]) -> Float[Array, "b h"]:
-        """Returns the last hidden state of the past encoder GRU."""
-        return self.x_rnn(x)[:, -1]
-
-    def encode(self, x, y) -> tuple[Float[Array, "b c z"], Float[Array, "b c z"]]:
-        """Returns `(mu, logvar)` of q(z | X, Y), one `nz` Gaussian per band (MOJO Sec. 3.3)."""
-        h_x = self.encode_x(x)
-        h_y = self.e_rnn(y)  # a hidden state per future frame keeps full temporal resolution
-        if self.latent == "dct":
-            h = jnp.concatenate([jnp.broadcast_to(h_x[:, None], h_y.shape[:-1] + h_x.shape[-1:]), h_y], axis=-1)
-            h = dct(h)  # (b, t_pred bands, 2 nh): frequency bands of the encoder states
-        else:
-            h = jnp.concatenate([h_x, h_y[:, -1]], axis=-1)[:, None]
-        h = self.e_mlp(h)  # the same layers for every band
-        return self.e_mu(h), self.e_logvar(h)
-
-    def latent_to_time(self, z: Float[Array, "b c z"]) -> Float[Array, "b t_pred z"]:
-        """Returns the per-frame latent: inverse DCT of the bands, or the one vector repeated."""
-        if self.latent == "dct":
-            return idct(z, self.horizon)
-        return jnp.broadcast_to(z, (z.shape[0], self.horizon, z.shape[-1]))
-
-    def decode_init(self, x: Float[Array, "b t_his d"], z: Float[Array, "b c z"], h_x=None):
-        """Returns `(carry0, inputs)`: the first decoder state and time-major per-step inputs `(t_pred, b, .)`."""
-        if h_x is None:
-            h_x = self.encode_x(x)
-        z_t = jnp.swapaxes(self.latent_to_time(z), 0, 1)
-        inputs = DecodeInputs(jnp.broadcast_to(h_x, (self.horizon,) + h_x.shape), z_t)
-        return DecodeCarry(self.drnn_mlp(h_x), x[:, -1]), inputs
-
-    def decode_step(self, carry: DecodeCarry, inputs: DecodeInputs) -> tuple[DecodeCarry, Float[Array, "b d"]]:
-        """Returns `(carry', y_t)`: one GRU step on `[h_x, z_t, y_{t-1}]`, plus `y_{t-1}` if residual."""
-        h = self.d_cell(carry.h, jnp.concatenate([inputs.h_x, inputs.z_t, carry.y_prev], axis=-1))
-        y = self.d_out(self.d_mlp(h))
-        if self.residual:
-            y = y + carry.y_prev
-        return DecodeCarry(h, y), y
-
-    def decode(self, x: Float[Array, "b t_his d"], z: Float[Array, "b c z"], h_x=None) -> Float[Array, "b t_pred d"]:
-        """Returns the decoded future `(batch, horizon, dim)` for band latents `z` (pass `h_x` to reuse it).
-
-        Computes exactly `decode_step` `horizon` times, with `h_x`'s share of the GRU input gates,
-        `h_x @ W_ih[:nh]`, computed once instead of at every step (it does not change over time).
-        `z_t`'s share stays in the loop: precomputing it for all steps materialises a
-        `(t_pred, b, 3 nh)` array per sample, which measured slower at batch 64 x K = 50 on CPU.
-        """
-        carry, inputs = self.decode_init(x, z, h_x)
-        if self.is_initializing():
-            self.decode_step(carry, jax.tree.map(lambda a: a[0], inputs))  # creates the decoder's parameters
-        w = self.d_cell.variables["params"]
-        nh = inputs.h_x.shape[-1]
-        gi_h = inputs.h_x[0] @ w["weight_ih"][:nh] + w["bias_ih"]  # (b, 3 nh)
-        w_zy = w["weight_ih"][nh:]
-
-        def step(mdl, c, z_t):
-            gi = gi_h + jnp.concatenate([z_t, c.y_prev], axis=-1) @ w_zy
-            h = gru_update(gi, c.h @ w["weight_hh"] + w["bias_hh"], c.h)
-            y = mdl.d_out(mdl.d_mlp(h))
-            if self.residual:
-                y = y + c.y_prev
-            return DecodeCarry(h, y), y
-
-        scan = nn.scan(step, variable_broadcast="params", split_rngs={"params": False}, length=self.horizon, out_axes=1)
-        _, ys = scan(self, carry, inputs.z_t)
-        return ys
-
-    def __call__(self, x, y, key=None):
-        """Returns `(y_rec, mu, logvar)`; samples z by reparameterisation when `key` is given, else z = mu."""
-        mu, logvar = self.encode(x, y)
-        z = mu if key is None else mu + jnp.exp(0.5 * logvar) * jax.random.normal(key, mu.shape)
-        return self.decode(x, z), mu, logvar
 
 
 def cvae_model(cfg: MojoConfig, dim: int, horizon: int) -> MojoCVAE:
@@ -275,26 +173,6 @@ def decode_step(params: DecoderParams, carry: DecodeCarry, inputs: DecodeInputs)
 # The second stage: DLow on the lowest L bands.
 
 
-class _QTrunk(nn.Module):
-    """Returns `(a, b)` each `(batch, n_heads, nk, nz)`: DLow's GRU + MLP trunk and affine heads."""
-
-    nz: int
-    nk: int
-    n_heads: int
-    nh_rnn: int
-    nh_mlp: tuple[int, ...]
-
-    @nn.compact
-    def __call__(self, x):
-        h = GRU(self.nh_rnn, name="x_rnn")(x)[:, -1]
-        h = MLP(self.nh_mlp, name="mlp")(h)
-        # One Dense with n_heads * nk * nz outputs is exactly n_heads unshared linear heads.
-        shape = (-1, self.n_heads, self.nk, self.nz)
-        a = nn.Dense(self.n_heads * self.nk * self.nz, name="head_A")(h).reshape(shape)
-        b = nn.Dense(self.n_heads * self.nk * self.nz, name="head_b")(h).reshape(shape)
-        return a, b
-
-
 class MojoQ(nn.Module):
     """Per-band DLow: returns `(z (b, nk, L, nz), a, b)` with `z_k = exp(a_k / 2) * eps + b_k` per band.
 
@@ -313,10 +191,10 @@ class MojoQ(nn.Module):
     @nn.compact
     def __call__(self, x: Float[Array, "b t_his d"], eps: Float[Array, "b l z"]):
         if self.shared_trunk:
-            a, b = _QTrunk(self.nz, self.nk, self.n_low, self.nh_rnn, tuple(self.nh_mlp), name="q")(x)
+            a, b = QTrunk(self.nz, self.nk, self.n_low, self.nh_rnn, tuple(self.nh_mlp), name="q")(x)
         else:
             bands = nn.vmap(
-                _QTrunk, variable_axes={"params": 0}, split_rngs={"params": True},
+                QTrunk, variable_axes={"params": 0}, split_rngs={"params": True},
                 in_axes=None, out_axes=1, axis_size=self.n_low,
             )
             a, b = bands(self.nz, self.nk, 1, self.nh_rnn, tuple(self.nh_mlp), name="q")(x)
@@ -337,26 +215,14 @@ def q_model(cfg: MojoConfig, horizon: int, nk: int) -> MojoQ:
 # Samplers.
 
 
-def decode_k(model: MojoCVAE, params, x: Float[Array, "b t_his d"], z: Float[Array, "b k c z"]) -> Float[Array, "b k t_pred d"]:
-    """Returns the K futures decoded from band latents `z` (vmapped over K; the past is encoded once)."""
-    h_x = model.apply(params, x, method=MojoCVAE.encode_x)
-    dec = lambda z_k: model.apply(params, x, z_k, h_x, method=MojoCVAE.decode)
-    return jnp.swapaxes(jax.vmap(dec, in_axes=1)(z), 0, 1)
-
-
-def sample_prior(model: MojoCVAE, params, x, key: jax.Array, k: int) -> Float[Array, "b k t_pred d"]:
-    """Returns K futures with every band's latent drawn i.i.d. from N(0, I) (MOJO's "VAE+DCT" sampler)."""
-    z = jax.random.normal(key, (x.shape[0], k, model.n_bands, model.nz))
-    return decode_k(model, params, x, z)
-
-
 def q_latents(model: MojoCVAE, q: MojoQ, q_params, x, key: jax.Array):
-    """Returns `(z (b, nk, n_bands, nz), a, b)`: DLow latents on the lowest L bands, N(0, I) above."""
+    """Returns `(z (b, nk) + latent_shape, a, b)`: DLow latents on the lowest L bands, N(0, I) above."""
     k_eps, k_high = jax.random.split(key)
     eps = jax.random.normal(k_eps, (x.shape[0], q.n_low, model.nz))
     z_low, a, b = q.apply(q_params, x, eps)
     z_high = jax.random.normal(k_high, (x.shape[0], q.nk, model.n_bands - q.n_low, model.nz))
-    return jnp.concatenate([z_low, z_high], axis=2), a, b
+    z = jnp.concatenate([z_low, z_high], axis=2)
+    return z.reshape(z.shape[:2] + model.latent_shape), a, b
 
 
 def sample_mojo(model: MojoCVAE, params, q: MojoQ, q_params, x, key: jax.Array) -> Float[Array, "b nk t_pred d"]:
@@ -366,31 +232,40 @@ def sample_mojo(model: MojoCVAE, params, q: MojoQ, q_params, x, key: jax.Array) 
 
 
 # --------------------------------------------------------------------------------------------
-# Objectives.
+# Objectives: each takes its own weights, as keywords.
 
 
-def cvae_loss(model: MojoCVAE, params, batch: Float[Array, "b t d"], key, *, t_his: int, cfg: MojoConfig):
-    """Returns `(loss, metrics)`: MOJO Eq. (1) (`cfg.loss="mojo"`) or DLow's CVAE objective (`"dlow"`).
+def cvae_loss(
+    model: MojoCVAE, params, batch: Float[Array, "b t d"], key, *, t_his: int, objective: str = "mojo",
+    alpha: float = 3.0, beta: float = 1.0, robust: bool = True, lambda_v: float = 1000.0,
+):
+    """Returns `(loss, metrics)`: MOJO Eq. (1) (`objective="mojo"`) or DLow's CVAE objective (`"dlow"`).
 
     "mojo": mean|Y - Yrec| + alpha mean|dY - dYrec| + beta Psi(KLD), KLD = 0.5 mean(-1 - logvar +
     mu^2 + exp(logvar)) over batch, bands and dims (the release's element means); Psi only if
-    `cfg.robust_kld`. "dlow": sum (Yrec - Y)^2 + lambda_v |x_T - yrec_1|^2 + beta KLD, sums / batch.
+    `robust`. "dlow": `models.cvae.cvae_objective` (squared error + lambda_v jump, sums / batch)
+    with beta Psi(KLD) when `robust`, else beta KLD.
     """
     x, y = batch[:, :t_his], batch[:, t_his:]
     y_rec, mu, logvar = model.apply(params, x, y, key)
-    if cfg.loss == "mojo":
+    if objective == "mojo":
         recon = jnp.mean(jnp.abs(y_rec - y))
         vel = jnp.mean(jnp.abs(jnp.diff(y_rec, axis=1) - jnp.diff(y, axis=1)))
         kld = jnp.mean(kld_normal(mu, logvar)) / mu.shape[-1]
-        kl_term = robust_kld(kld) if cfg.robust_kld else kld
-        loss = recon + cfg.alpha * vel + cfg.beta * kl_term
+        kl_term = robust_kld(kld) if robust else kld
+        loss = recon + alpha * vel + beta * kl_term
         return loss, {"recon": recon, "vel": vel, "kld": kld}
-    b = batch.shape[0]
-    recon = jnp.sum((y_rec - y) ** 2) / b
-    jump = jnp.sum((x[:, -1] - y_rec[:, 0]) ** 2) / b
-    kld = jnp.sum(kld_normal(mu, logvar)) / b
-    kl_term = robust_kld(kld) if cfg.robust_kld else kld
-    return recon + cfg.lambda_v * jump + cfg.beta * kl_term, {"recon": recon, "jump": jump, "kld": kld}
+    if objective != "dlow":
+        raise ValueError(f"mojo.cvae_loss: objective must be 'mojo' or 'dlow', got {objective!r}")
+    kld = jnp.sum(kld_normal(mu, logvar)) / batch.shape[0]
+    kl_term = robust_kld(kld) if robust else kld
+    loss, metrics = cvae_objective(y_rec, y, x[:, -1], kl_term, beta=beta, lambda_v=lambda_v)
+    return loss, dict(metrics, kld=kld)
+
+
+def cvae_loss_weights(cfg: MojoConfig) -> dict:
+    """Returns the keyword weights of `cvae_loss` that a `MojoConfig` sets."""
+    return dict(objective=cfg.loss, alpha=cfg.alpha, beta=cfg.beta, robust=cfg.robust_kld, lambda_v=cfg.lambda_v)
 
 
 def min_of_k_l1_error(y_k: Float[Array, "k t d"], y: Float[Array, "t d"]) -> Float[Array, ""]:
@@ -398,24 +273,38 @@ def min_of_k_l1_error(y_k: Float[Array, "k t d"], y: Float[Array, "t d"]) -> Flo
     return jnp.min(jnp.sum(jnp.abs(y_k - y[None]), axis=(-2, -1)))
 
 
-def q_loss(q: MojoQ, q_params, model: MojoCVAE, cvae_params, batch, key, *, t_his: int, cfg: MojoConfig):
+def q_loss(
+    q: MojoQ, q_params, model: MojoCVAE, cvae_params, batch, key, *, t_his: int, recon_norm: str = "l1",
+    d_scale: float = 100.0, lambda_j: float = 25.0, lambda_recon: float = 2.0, lambda_kl: float = 1.0,
+):
     """Returns `(loss, metrics)`: DLow's objective (DLow Eq. (8)-(10)) for the per-band maps on a frozen decoder.
 
     loss = lambda_kl mean_{b,k,band} KL(N(b, exp(a)) || N(0,I)) + lambda_j mean_{i<j} exp(-||y_i - y_j||^2 / d_scale)
-           + lambda_recon min_k ||y_k - Y|| (L1 for MOJO's loss as in the release, squared for DLow's).
+           + lambda_recon min_k ||y_k - Y|| (`recon_norm` "l1" for MOJO's loss as in the release, "sq" for DLow's).
     """
+    if recon_norm not in ("l1", "sq"):
+        raise ValueError(f"mojo.q_loss: recon_norm must be 'l1' or 'sq', got {recon_norm!r}")
     x, y = batch[:, :t_his], batch[:, t_his:]
     z, a, b = q_latents(model, q, q_params, x, key)
     y_g = decode_k(model, jax.lax.stop_gradient(cvae_params), x, z)
     kld = jnp.mean(kld_normal(b, a))
-    div = jnp.mean(jax.vmap(lambda yk: dlow_diversity(yk, cfg.d_scale))(y_g))
-    recon_fn = min_of_k_l1_error if cfg.loss == "mojo" else min_of_k_sq_error
+    div = jnp.mean(jax.vmap(lambda yk: dlow_diversity(yk, d_scale))(y_g))
+    recon_fn = min_of_k_l1_error if recon_norm == "l1" else min_of_k_sq_error
     recon = jnp.mean(jax.vmap(recon_fn)(y_g, y))
-    loss = cfg.lambda_kl * kld + cfg.lambda_j * div + cfg.lambda_recon * recon
+    loss = lambda_kl * kld + lambda_j * div + lambda_recon * recon
     return loss, {"kld": kld, "div": div, "recon": recon}
+
+
+def q_loss_weights(cfg: MojoConfig) -> dict:
+    """Returns the keyword weights of `q_loss` that a `MojoConfig` sets (the reconstruction norm follows `cfg.loss`)."""
+    return dict(
+        recon_norm="l1" if cfg.loss == "mojo" else "sq", d_scale=cfg.d_scale, lambda_j=cfg.lambda_j,
+        lambda_recon=cfg.lambda_recon, lambda_kl=cfg.lambda_kl,
+    )
 
 
 def latent_spectrum(model: MojoCVAE, params, x, y) -> tuple[Float[Array, " c"], Float[Array, " c"]]:
     """Returns per-band `(mean |mu|, mean |logvar|)` over windows and latent dims (MOJO Fig. S5)."""
     mu, logvar = model.apply(params, x, y, method=MojoCVAE.encode)
+    mu, logvar = (a.reshape(a.shape[0], -1, a.shape[-1]) for a in (mu, logvar))  # a vector latent is one band
     return jnp.mean(jnp.abs(mu), axis=(0, 2)), jnp.mean(jnp.abs(logvar), axis=(0, 2))

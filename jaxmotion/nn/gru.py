@@ -14,9 +14,12 @@ from jaxtyping import Array, Float
 
 
 def gru_update(
-    gi: Float[Array, "b 3h"], gh: Float[Array, "b 3h"], h: Float[Array, "b h"]
+    gi: Float[Array, "b g"], gh: Float[Array, "b g"], h: Float[Array, "b h"]
 ) -> Float[Array, "b h"]:
     """Returns `h'` from the input gates `gi = W_i x + b_i` and hidden gates `gh = W_h h + b_h` (PyTorch GRUCell).
+
+    `g = 3 h` (reset, update and new gates); jaxtyping cannot say so here because `h` is bound
+    after `gi` and `gh`.
 
     Split from the matrix products so a caller can compute `gi` outside a time loop: for a whole
     input sequence at once (`GRU`), or once for inputs that do not change over time (a decoder's

@@ -26,7 +26,11 @@ from tqdm.auto import tqdm
 
 
 class TrainState(struct.PyTreeNode):
-    """Step counter, trainable `params`, optimiser state, and `frozen` inputs (e.g. a frozen decoder)."""
+    """Step counter, trainable `params`, optimiser state, and `frozen` inputs (e.g. a frozen decoder).
+
+    Checkpoints hold everything but `frozen`: frozen inputs are another stage's parameters and are
+    checkpointed there.
+    """
 
     step: jax.Array
     params: Any
@@ -129,7 +133,7 @@ def fit(
                 f"{workdir / 'ckpt'} already holds checkpoints (latest step {latest}); "
                 "pass --resume to continue from it, or choose another --workdir"
             )
-        state = mngr.restore(latest, args=ocp.args.StandardRestore(state))
+        state = _restore(mngr, latest, state)
     mesh = data_mesh()
     replicated = NamedSharding(mesh, PartitionSpec())
     batch_sharding = NamedSharding(mesh, PartitionSpec("data"))
@@ -161,10 +165,10 @@ def fit(
                 log.write(json.dumps({"stage": desc, "step": done, "time_s": time.perf_counter() - t0, **m}) + "\n")
                 log.flush()
                 bar.set_postfix({k: f"{v:.4g}" for k, v in m.items() if k in ("loss", "recon", "kld", "div")})
-            mngr.save(done, args=ocp.args.StandardSave(state))
+            mngr.save(done, args=ocp.args.StandardSave(state.replace(frozen=None)))
             bar.update(1)
     if mngr.latest_step() != num_steps:
-        mngr.save(num_steps, args=ocp.args.StandardSave(state), force=True)
+        mngr.save(num_steps, args=ocp.args.StandardSave(state.replace(frozen=None)), force=True)
     mngr.wait_until_finished()
     mngr.close()
     return state
@@ -177,6 +181,12 @@ def restore_params(workdir: str | Path, state: TrainState) -> TrainState:
     latest = mngr.latest_step()
     if latest is None:
         raise FileNotFoundError(f"no checkpoint in {ckpt}; train first (jaxmotion train / run)")
-    restored = mngr.restore(latest, args=ocp.args.StandardRestore(state))
+    restored = _restore(mngr, latest, state)
     mngr.close()
     return restored
+
+
+def _restore(mngr: ocp.CheckpointManager, step: int, state: TrainState) -> TrainState:
+    """Returns checkpoint `step` restored into the structure of `state`, with `state`'s frozen inputs."""
+    restored = mngr.restore(step, args=ocp.args.StandardRestore(state.replace(frozen=None)))
+    return restored.replace(frozen=state.frozen)

@@ -1,13 +1,16 @@
 """Fit the skeleton body to a C3D recording, gaps included, and draw markers and the fitted skeleton.
 
-    python -m jaxmotion.body.fit_c3d ../shared/data/vicon-c3d/squat.c3d --out squat_fit.png
+    python -m jaxmotion.fit_c3d ../shared/data/vicon-c3d/squat.c3d --out squat_fit.png
 
-Steps: read the labelled markers (`data.c3d`); build a skeleton body with the file's markers (the
+Steps: read the labelled markers (`formats.c3d`); build a skeleton body with the file's markers (the
 `vicon53` layout, on the built-in 21-joint skeleton or on `--skeleton FILE.bvh`); calibrate bone
 lengths and marker offsets on `--calib-frames` frames spread over the recording (`fit.calibrate`);
 fit every `--stride`-th frame in one `lax.scan`, each frame warm-started from the previous one
 (`fit.fit_sequence`); print the median and 95th percentile of the per-marker residual over the
 markers seen, and write a PNG. `--json` writes the numbers.
+
+A command-line script beside `cli.py`: it uses `jaxmotion.body` and `jaxmotion.formats`, and nothing
+in the library imports it.
 """
 
 from __future__ import annotations
@@ -24,7 +27,8 @@ import numpy as np
 from jaxmotion.body.fit import calibrate, fit_sequence
 from jaxmotion.body.markersets import MARKER_SPECS
 from jaxmotion.body.skeleton import SkeletonBody, skeleton_body_from_bvh, toy_skeleton
-from jaxmotion.data.c3d import read_c3d
+from jaxmotion.formats.bvh import read_bvh
+from jaxmotion.formats.c3d import read_c3d
 
 
 def fit_c3d(path, *, skeleton: str | None = None, stride: int = 1, calib_frames: int = 32, rounds: int = 4) -> dict:
@@ -36,8 +40,6 @@ def fit_c3d(path, *, skeleton: str | None = None, stride: int = 1, calib_frames:
     if skeleton is None:
         body: SkeletonBody = toy_skeleton(names)
     else:
-        from jaxmotion.data.bvh import read_bvh
-
         body = skeleton_body_from_bvh(read_bvh(skeleton), names)
     pts, msk = rec.select(names)
     pts, msk = pts[::stride], msk[::stride]
@@ -116,7 +118,7 @@ def plot_fit(out: dict, png: str | Path, n_frames: int = 4) -> Path:
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(prog="python -m jaxmotion.body.fit_c3d", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m jaxmotion.fit_c3d", description=__doc__.split("\n\n")[0])
     ap.add_argument("file", help="a .c3d file with labelled markers")
     ap.add_argument("--out", default=None, help="PNG to write (default: FILE stem + _fit.png in the current folder)")
     ap.add_argument("--skeleton", default=None, help="a BVH file whose skeleton to use (default: built-in 21 joints)")

@@ -6,7 +6,10 @@
 
 Each clip's BVH rotations and root translation are the skeleton body's parameters (shape 0, the
 Bandai skeleton, `bandai` = CMU-41 markers), so every frame is a valid body by construction.
-The command line reaches the dataset through a config's `data_options={"markers": "bandai"}`.
+The command line reaches the dataset through a config's `data_options={"markers": "bandai"}`
+(`datasets.load_dataset`). This is a dataset loader beside `load_bandai` (the same clips, split and
+protocol, `datasets.BANDAI_*`); it builds on the body model (`jaxmotion.body`), which sits below
+`data/` and never imports it.
 """
 
 from __future__ import annotations
@@ -19,7 +22,13 @@ import jax
 import numpy as np
 
 from jaxmotion.body.markersets import resolve_roles
+from jaxmotion.body.skeleton import params_from_bvh, skeleton_body_from_bvh
+from jaxmotion.data.datasets import (
+    BANDAI_NAME, BANDAI_PROTOCOL, BANDAI_TEST_STYLES, BANDAI_TRAIN_STYLES, bandai_clip_dir, default_cache_dir,
+)  # fmt: skip
+from jaxmotion.data.types import MotionDataset, Sequence, Skeleton
 from jaxmotion.data.windows import canonicalise_windows
+from jaxmotion.formats.bvh import read_bvh
 
 
 class MarkerClip(NamedTuple):
@@ -61,12 +70,8 @@ def bandai_marker_clips(
 ):  # fmt: skip
     """Returns `(body, [MarkerClip])`: every Bandai-Namco-2 clip (of `styles`) as body markers
     (`cache_dir`: where the tarball is extracted, as `load_bandai`)."""
-    from jaxmotion.body.skeleton import params_from_bvh, skeleton_body_from_bvh
-    from jaxmotion.data.bvh import read_bvh
-    from jaxmotion.data.datasets import _BANDAI_NAME, _bandai_clip_dir
-
-    clip_dir = _bandai_clip_dir(Path(root).expanduser(), cache_dir)
-    files = sorted(p for p in clip_dir.glob("dataset-2_*.bvh") if _BANDAI_NAME.match(p.stem))
+    clip_dir = bandai_clip_dir(Path(root).expanduser(), cache_dir)
+    files = sorted(p for p in clip_dir.glob("dataset-2_*.bvh") if BANDAI_NAME.match(p.stem))
     if not files:
         raise ValueError(f"{clip_dir}: no Bandai-Namco-2 clips")
     body = skeleton_body_from_bvh(read_bvh(files[0]), marker_set)
@@ -75,7 +80,7 @@ def bandai_marker_clips(
     points_of = jax.jit(jax.vmap(lambda p: (body.markers(p), body.joints(p))))
     clips = []
     for f in files:
-        m = _BANDAI_NAME.match(f.stem)
+        m = BANDAI_NAME.match(f.stem)
         if styles is not None and m["style"] not in styles:
             continue
         p = params_from_bvh(body, read_bvh(f))
@@ -109,10 +114,8 @@ for _p in ("L", "R"):
 _CACHE_VERSION = 1
 
 
-def marker_skeleton(marker_names: tuple[str, ...]):
+def marker_skeleton(marker_names: tuple[str, ...]) -> Skeleton:
     """Returns the dataset `Skeleton` of a marker set: `origin`, then the markers (parents draw sticks)."""
-    from jaxmotion.data.types import Skeleton
-
     names = ("origin",) + tuple(marker_names)
     index = {n: i for i, n in enumerate(names)}
     return Skeleton(names, (-1,) + tuple(index.get(_DRAW_PARENT.get(n, ""), -1) for n in marker_names))
@@ -130,9 +133,6 @@ def load_bandai_markers(root: str | os.PathLike, marker_set: str = "bandai", cac
     (for recursive projection), `info["point_names"]` the marker names, `info["up_axis"]` 2. The
     markers are computed once and cached as an npz beside the extracted clips.
     """
-    from jaxmotion.data.datasets import BANDAI_PROTOCOL, BANDAI_TEST_STYLES, BANDAI_TRAIN_STYLES, default_cache_dir
-    from jaxmotion.data.types import MotionDataset, Sequence
-
     styles = BANDAI_TRAIN_STYLES + BANDAI_TEST_STYLES
     cache = Path(cache_dir or default_cache_dir()).expanduser().parent / f"bandai2_markers_{marker_set}_v{_CACHE_VERSION}.npz"
     body = None
@@ -141,11 +141,7 @@ def load_bandai_markers(root: str | os.PathLike, marker_set: str = "bandai", cac
         names, styl, content = list(z["names"]), list(z["styles"]), list(z["contents"])
         splits = np.cumsum(z["lengths"])[:-1]
         markers, canon = np.split(z["markers"], splits), np.split(z["canon"], splits)
-        from jaxmotion.body.skeleton import skeleton_body_from_bvh
-        from jaxmotion.data.bvh import read_bvh
-        from jaxmotion.data.datasets import _bandai_clip_dir
-
-        clip_dir = _bandai_clip_dir(Path(root).expanduser(), cache_dir)
+        clip_dir = bandai_clip_dir(Path(root).expanduser(), cache_dir)
         body = skeleton_body_from_bvh(read_bvh(clip_dir / f"{names[0]}.bvh"), marker_set)
     else:
         body, clips = bandai_marker_clips(root, styles, marker_set, cache_dir)

@@ -7,6 +7,10 @@ rotation is `Rz @ Rx @ Ry`. Position channels, on any joint, replace that joint'
 
     bvh = read_bvh("01_01.bvh")
     positions = forward_kinematics(bvh)          # (F, J, 3), in the file's units
+    positions *= guess_scale(bvh)                # metres (CMU's cgspeed units are recognised)
+
+`is_ground_node(bvh)` tells whether the root is a constant ground node (Bandai's `joint_Root`),
+which dataset loaders and body models drop. Only numpy: this module sits below `body/` and `data/`.
 """
 
 from __future__ import annotations
@@ -19,6 +23,10 @@ import numpy as np
 
 _POSITION_AXES = {"Xposition": 0, "Yposition": 1, "Zposition": 2}
 _ROTATION_AXES = {"Xrotation": 0, "Yrotation": 1, "Zrotation": 2}
+
+# Skeletons whose units cannot be guessed from their size (see `guess_scale`).
+CMU_SCALE = 0.056444
+_KNOWN_SCALES = {frozenset({"Hips", "LHipJoint", "RHipJoint", "LowerBack"}): CMU_SCALE}
 
 
 @dataclasses.dataclass
@@ -249,10 +257,10 @@ def euler_matrices(angles_deg: np.ndarray, axes: str) -> np.ndarray:
     return out
 
 
-def forward_kinematics(bvh: Bvh, frames: np.ndarray | slice | None = None) -> np.ndarray:
+def forward_kinematics(bvh: Bvh, frames: np.ndarray | slice | list[int] | None = None) -> np.ndarray:
     """Returns `(F, J, 3)` global joint positions in the file's units.
 
-    `frames` selects motion rows (an index array or slice; all frames if None). Each joint's
+    `frames` selects motion rows (an index array or list, or a slice; all frames if None). Each joint's
     transform is `global_j = global_parent @ [R_j | t_j]` with `t_j` its position channels (or
     its OFFSET when it has none) and `R_j` its rotation channels composed in file order.
     """
@@ -280,3 +288,34 @@ def forward_kinematics(bvh: Bvh, frames: np.ndarray | slice | None = None) -> np
             rotations[j] = rotations[parent] @ local_r
             positions[:, j] = positions[:, parent] + np.einsum("fik,fk->fi", rotations[parent], local_t)
     return positions
+
+
+def guess_scale(bvh: Bvh) -> float:
+    """Returns metres per file unit: a known skeleton's, else a power of ten from the body size.
+
+    The size is the largest distance between two body joints in the rest pose (offsets only); a human
+    measures 1-2.5 m, so a size in [0.5, 5) means metres, [50, 500) centimetres, [500, 5000)
+    millimetres. Anything else (e.g. inches) needs an explicit scale.
+    """
+    names = set(bvh.names)
+    for known, s in _KNOWN_SCALES.items():
+        if known <= names:
+            return s
+    rest = np.zeros((bvh.num_joints, 3))
+    for j, p in enumerate(bvh.parents):
+        rest[j] = bvh.offsets[j] + (rest[p] if p >= 0 else 0.0)
+    if is_ground_node(bvh):
+        rest = rest[1:]  # the body's offset from a ground node says nothing about its size
+    size = float(np.max(np.linalg.norm(rest[:, None] - rest[None], axis=-1)))
+    for lo, s in ((0.5, 1.0), (50.0, 0.01), (500.0, 0.001)):
+        if lo <= size < 10 * lo:
+            return s
+    raise ValueError(f"{bvh.path}: cannot guess units from a rest-pose size of {size:.3g}; pass scale=")
+
+
+def is_ground_node(bvh: Bvh) -> bool:
+    """Returns whether the root is a ground node: zero offset, one child, constant channels."""
+    one_child = sum(p == 0 for p in bvh.parents) == 1
+    root_values = bvh.motion[:, : len(bvh.channels[0])]
+    still = root_values.size == 0 or bool(np.all(root_values == root_values[:1]))
+    return one_child and bool(np.all(bvh.offsets[0] == 0)) and still

@@ -1,0 +1,11 @@
+"""File formats: motion capture parsers and helpers that need nothing but numpy.
+
+- `bvh.read_bvh` / `bvh.forward_kinematics`: BVH skeletons and motion; `bvh.guess_scale` (metres
+  per file unit) and `bvh.is_ground_node` (a constant root like Bandai's `joint_Root`).
+- `c3d.read_c3d`: labelled C3D marker trajectories with their gaps.
+
+This is the lowest layer: `formats <- body <- data` (body models read BVH files, dataset loaders
+use both). Nothing here imports `jaxmotion.body` or `jaxmotion.data`, not even `data.types`: a
+parsed file carries its own names and parents (`Bvh.names`, `Bvh.parents`), and turning them into a
+dataset `Skeleton` is the loaders' job. `tests/test_layers.py` checks the direction.
+"""

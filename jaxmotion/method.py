@@ -1,0 +1,115 @@
+"""A method is a value: its config type, its training stages, its predictors, registered by name.
+
+    from jaxmotion.method import Method, Stage, register
+
+    register(Method(name="mine", config_type=MyConfig, stages=my_stages, predictors=my_predictors))
+
+`jaxmotion train/eval/run` look the config's `method` up in this registry (`jaxmotion.methods.get_method`,
+which first registers the built-in methods: the modules of `jaxmotion.methods`, each defining `METHOD`)
+and hand its stages to the one stage runner (`jaxmotion.train.runner`), which trains, checkpoints,
+resumes and restores every method the same way. A package of your own registers its methods by
+calling `register` on import, or through the `jaxmotion.methods` entry-point group (an entry point
+that loads a `Method`), or a config file can call `register` before `get_config()` returns.
+README "Adding a method" walks through DLow.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Callable
+
+import jax
+import numpy as np
+import optax
+
+# `(x (b, t_his, D), key) -> (b, K, t_pred, D)`, jitted.
+Predictor = Callable[[jax.Array, jax.Array], jax.Array]
+# `(params, frozen, batch, key) -> (loss, metrics)`; with BatchNorm `(loss, (metrics, new_batch_stats))`.
+LossFn = Callable[[Any, Any, Any, jax.Array], tuple]
+
+
+@dataclasses.dataclass(frozen=True)
+class Stage:
+    """One training stage: what it trains, on what, for how long.
+
+    `init(key)` returns the initial parameters (a model's full variable dict when `batch_norm`).
+    `loss(params, frozen, batch, key)` is the objective; `frozen` is a dict `{stage name: trained
+    parameters}` of the earlier stages listed in `frozen` (e.g. DLow's Q network sees the CVAE).
+    `batches(rng)` returns one batch (a pytree of numpy arrays) for `np.random.default_rng([data_seed,
+    step])`, so a resumed stage sees exactly the batches of an uninterrupted one. The stage's folder
+    in the work directory is `name` (checkpoints in `name/ckpt`, log in `name/log.jsonl`).
+    """
+
+    name: str
+    init: Callable[[jax.Array], Any]
+    optimizer: optax.GradientTransformation
+    loss: LossFn
+    batches: Callable[[np.random.Generator], Any]
+    num_steps: int
+    init_seed: int = 0
+    data_seed: int = 0
+    frozen: tuple[str, ...] = ()
+    batch_norm: bool = False  # params are `{"params", "batch_stats"}`; the loss returns new statistics
+
+    def __post_init__(self):
+        if not self.name or "/" in self.name:
+            raise ValueError(f"Stage.name must be a non-empty folder name, got {self.name!r}")
+        if self.num_steps < 0:
+            raise ValueError(f"Stage {self.name!r}: num_steps must be >= 0, got {self.num_steps}")
+
+
+@dataclasses.dataclass(frozen=True)
+class Method:
+    """A method: its settings type and how to train and sample it.
+
+    - `config_type`: the type of `Config.method_config` (a dataclass; `config_type()` is the default).
+    - `stages(cfg, prep) -> [Stage]`: the training stages in order (`cfg` a `jaxmotion.config.Config`
+      whose `method_config` is checked, `prep` an `experiment.Prepared`: dataset, train sampler, test windows).
+    - `predictors(cfg, ds, params, k) -> {name: Predictor}`: jitted samplers of K futures, including
+      the baselines the method is compared against; `params` is `{stage name: trained parameters}`.
+    - `extra_metrics(ds, pred, gt) -> {name: (n,) per-window array}`: optional, added to evaluation.
+    - `reference_futures`: where the multimodal ground truth of MMADE/MMFDE comes from: "test"
+      (PROTOCOL sec. 2: the futures of test windows with a similar last observed pose) or "train"
+      (the futures of training windows, a pool of pseudo ground truth); "test" is the protocol.
+    """
+
+    name: str
+    config_type: type
+    stages: Callable[[Any, Any], list[Stage]]
+    predictors: Callable[[Any, Any, dict, int], dict[str, Predictor]]
+    extra_metrics: Callable[[Any, np.ndarray, np.ndarray], dict[str, np.ndarray]] | None = None
+    reference_futures: str = "test"
+    description: str = ""
+
+    def __post_init__(self):
+        if self.reference_futures not in ("test", "train"):
+            raise ValueError(f"Method {self.name!r}: reference_futures must be 'test' or 'train', got {self.reference_futures!r}")
+
+    def settings(self, cfg) -> Any:
+        """Returns `cfg.method_config` checked against `config_type` (the default `config_type()` when it is None)."""
+        mc = cfg.method_config if cfg.method_config is not None else self.config_type()
+        if not isinstance(mc, self.config_type):
+            raise TypeError(
+                f"method {self.name!r} takes Config.method_config of type {self.config_type.__module__}."
+                f"{self.config_type.__name__}, got {type(mc).__module__}.{type(mc).__name__}"
+            )
+        return mc
+
+
+_REGISTRY: dict[str, Method] = {}
+
+
+def register(method: Method, *, replace: bool = False) -> Method:
+    """Adds `method` to the registry under `method.name` (a second method of the same name needs `replace=True`)."""
+    if not isinstance(method, Method):
+        raise TypeError(f"register: expected a jaxmotion.method.Method, got {type(method).__name__}")
+    old = _REGISTRY.get(method.name)
+    if old is not None and old is not method and not replace:
+        raise ValueError(f"a method named {method.name!r} is already registered; pass replace=True to replace it")
+    _REGISTRY[method.name] = method
+    return method
+
+
+def registered() -> dict[str, Method]:
+    """Returns the methods registered so far, by name (`jaxmotion.methods.methods()` also loads the built-in ones)."""
+    return dict(sorted(_REGISTRY.items()))

@@ -1,0 +1,110 @@
+"""DivSamp as a method: the GCN CVAE, then the Gumbel-Softmax sampler on the frozen decoder (DivSamp Alg. 1-2).
+
+Settings: `Config.method_config`, a `jaxmotion.models.divsamp.DivSampConfig`. Stages: `cvae`, then
+`sampler` (K = `DivSampConfig.nk` in training; any K at test time).
+
+BatchNorm statistics: each stage's parameters are the full Flax variable dict `{"params": ...,
+"batch_stats": ...}`, so checkpoints and resume carry the running averages with the weights. The
+optimiser only touches `"params"` (`loop.bn_optimizer`), and the train step writes the statistics
+returned by the loss. In the sampler stage the CVAE's variables are the frozen input and the
+decoder runs in evaluation mode (running averages), as the release's `model_t1.eval()`.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import optax
+
+from jaxmotion.method import Method, Stage
+from jaxmotion.methods.common import adam, window_batches, zero_velocity
+from jaxmotion.models import divsamp
+from jaxmotion.models.divsamp import DivSampConfig
+from jaxmotion.train.loop import bn_optimizer, lr_schedule
+
+
+def settings(cfg) -> DivSampConfig:
+    """Returns the checked `cfg.method_config` (the defaults when it is None)."""
+    return divsamp.check_config(METHOD.settings(cfg))
+
+
+def _dummy_nodes(ds, d: DivSampConfig):
+    return jnp.zeros((2, ds.dim // 3, 3 * d.n_dct), jnp.float32)
+
+
+def cvae_stage(cfg, prep, d: DivSampConfig) -> Stage:
+    """Returns the CVAE stage (the release's `run_cvae.py` objective, grad-norm clipping, BatchNorm)."""
+    ds = prep.dataset
+    model = divsamp.cvae_from_config(d)
+    cx = _dummy_nodes(ds, d)
+    loss = functools.partial(
+        divsamp.cvae_loss, model, t_his=ds.t_his, parents=tuple(ds.skeleton.parents), beta=d.beta,
+        lambda_v=d.lambda_v, lambda_his=d.lambda_his, lambda_limb=d.lambda_limb,
+    )
+    inner = optax.chain(
+        optax.clip_by_global_norm(d.cvae_grad_clip),
+        optax.adam(lr_schedule(d.cvae_lr, d.cvae_num_steps, d.cvae_lr_fix_fraction)),
+    )
+    return Stage(
+        name="cvae",
+        init=lambda key: dict(model.init(key, cx, cx, jax.random.key(0), train=False)),
+        optimizer=bn_optimizer(inner),
+        loss=lambda v, _frozen, batch, key: loss(v, batch, key),
+        batches=window_batches(prep, d.cvae_batch_size),
+        num_steps=d.cvae_num_steps, init_seed=cfg.seed, data_seed=cfg.seed, batch_norm=True,
+    )
+
+
+def sampler_stage(cfg, prep, d: DivSampConfig, name: str = "sampler") -> Stage:
+    """Returns the sampler stage on the frozen CVAE (Eq. (13)-(15)); `name` and `d` let an ablation train variants beside it."""
+    ds = prep.dataset
+    model, cvae = divsamp.sampler_from_config(d), divsamp.cvae_from_config(d)
+    loss = functools.partial(
+        divsamp.sampler_loss, model, cvae=cvae, t_his=ds.t_his, k=d.nk, lambda_kl=d.lambda_kl,
+        lambda_acc=d.lambda_acc, lambda_div=d.lambda_div, eta=d.eta, diversity=d.diversity, d_scale=d.d_scale,
+    )
+    return Stage(
+        name=name,
+        init=lambda key: dict(model.init(key, _dummy_nodes(ds, d), jax.random.key(0), 2, train=False)),
+        optimizer=bn_optimizer(adam(d.lr, d.num_steps, d.lr_fix_fraction)),
+        loss=lambda v, frozen, batch, key: loss(v, cvae_variables=frozen["cvae"], batch=batch, key=key),
+        batches=window_batches(prep, d.batch_size),
+        num_steps=d.num_steps, init_seed=cfg.seed + 1, data_seed=cfg.seed + 1, frozen=("cvae",), batch_norm=True,
+    )
+
+
+def stages(cfg, prep) -> list[Stage]:
+    """Returns DivSamp's stages: the CVAE, then the sampler."""
+    d = settings(cfg)
+    return [cvae_stage(cfg, prep, d), sampler_stage(cfg, prep, d)]
+
+
+def make_predictors(d: DivSampConfig, ds, cvae_variables, sampler_variables, k: int) -> dict:
+    """Returns jitted `(x, key) -> (b, K, t_pred, D)` samplers: zero-velocity, the CVAE from N(0, I), DivSamp.
+
+    DivSamp draws any K from the same trained sampler (its K is a call argument, not a constant).
+    """
+    cvae, sampler, t_pred = divsamp.cvae_from_config(d), divsamp.sampler_from_config(d), ds.t_pred
+    return {
+        "zero_velocity": zero_velocity(t_pred, k),
+        "divsamp_cvae": jax.jit(lambda x, key: divsamp.sample_prior(cvae, cvae_variables, x, key, k, t_pred=t_pred)),
+        "divsamp": jax.jit(
+            lambda x, key: divsamp.sample_divsamp(cvae, cvae_variables, sampler, sampler_variables, x, key, k, t_pred=t_pred)
+        ),
+    }
+
+
+def predictors(cfg, ds, params: dict, k: int) -> dict:
+    """Returns `make_predictors` for the config's trained stages."""
+    return make_predictors(settings(cfg), ds, params["cvae"], params["sampler"], k)
+
+
+METHOD = Method(
+    name="divsamp",
+    config_type=DivSampConfig,
+    stages=stages,
+    predictors=predictors,
+    description="DivSamp (Dang et al., ACM MM 2022): GCN CVAE on DCT, Gumbel-Softmax sampling from a learned basis",
+)

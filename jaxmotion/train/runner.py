@@ -1,0 +1,135 @@
+"""The one stage runner: trains, resumes and restores the stages of any method.
+
+A work directory holds one folder per stage (`WORKDIR/<stage>/ckpt`, `log.jsonl`) and a
+`stage.json` beside them naming the method, the stage and the shape of every parameter, so that
+restoring a stage from a folder written by another stage or another method is a clear error that
+names the stage and the mismatch, not a stack trace from the checkpoint library.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import jax
+
+from jaxmotion.method import Method, Stage
+from jaxmotion.train.loop import TrainState, create_state, fit, make_bn_train_step, make_train_step, restore_params
+
+MANIFEST = "stage.json"
+
+
+class CheckpointMismatch(ValueError):
+    """A stage folder holds another stage's or another method's checkpoints."""
+
+
+def init_state(stage: Stage, trained: dict[str, Any] | None = None) -> TrainState:
+    """Returns the stage's fresh `TrainState`: `stage.init(key(init_seed))`, its optimiser state, its frozen inputs.
+
+    `trained` maps earlier stage names to their parameters; the stage's `frozen` names must be there.
+    """
+    trained = trained or {}
+    missing = [n for n in stage.frozen if n not in trained]
+    if missing:
+        raise ValueError(f"stage {stage.name!r} needs the trained parameters of {missing} (train those stages first)")
+    params = stage.init(jax.random.key(stage.init_seed))
+    frozen = {n: trained[n] for n in stage.frozen} if stage.frozen else None
+    return create_state(params, stage.optimizer, frozen=frozen)
+
+
+def param_shapes(params) -> dict[str, list]:
+    """Returns `{key path: [shape, dtype]}` of a parameter pytree (what `stage.json` records)."""
+    leaves = jax.tree_util.tree_flatten_with_path(params)[0]
+    return {jax.tree_util.keystr(p): [list(v.shape), str(v.dtype)] for p, v in leaves}
+
+
+def _manifest(method: Method, stage: Stage, state: TrainState) -> dict:
+    return {"method": method.name, "stage": stage.name, "num_steps": stage.num_steps, "params": param_shapes(state.params)}
+
+
+def check_stage_dir(method: Method, stage: Stage, state: TrainState, stage_dir: Path) -> None:
+    """Raises `CheckpointMismatch` naming the stage and the difference when `stage_dir` was written for another stage."""
+    path = stage_dir / MANIFEST
+    if not path.exists():
+        return
+    try:
+        found = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as e:
+        raise CheckpointMismatch(f"stage {stage.name!r}: {path} is unreadable ({e}); it should name the method and stage") from e
+    if found.get("method") != method.name or found.get("stage") != stage.name:
+        raise CheckpointMismatch(
+            f"stage {stage.name!r} of method {method.name!r}: {stage_dir} holds stage {found.get('stage')!r} of method "
+            f"{found.get('method')!r}; point --workdir at a run of this config, or train it there"
+        )
+    want, have = param_shapes(state.params), found.get("params", {})
+    if want != have:
+        diff = sorted(set(want) ^ set(have))
+        if diff:
+            what = f"parameters only in {'the config' if diff[0] in want else 'the checkpoint'}: {diff[:4]}"
+        else:
+            p = next(p for p in sorted(want) if want[p] != have[p])
+            what = f"{p} is {have[p][0]} {have[p][1]} in the checkpoint but {want[p][0]} {want[p][1]} for this config"
+        raise CheckpointMismatch(
+            f"stage {stage.name!r} of method {method.name!r}: the checkpoints in {stage_dir} do not fit this config "
+            f"({what}); was the config changed after training?"
+        )
+
+
+def _train_step(stage: Stage):
+    make = make_bn_train_step if stage.batch_norm else make_train_step
+    return make(stage.loss, stage.optimizer)
+
+
+def run_stage(method: Method, stage: Stage, cfg, workdir: str | Path, trained: dict[str, Any], resume: bool = False):
+    """Returns the trained parameters of one stage in `workdir/<stage.name>` (its frozen inputs from `trained`)."""
+    state = init_state(stage, trained)
+    stage_dir = Path(workdir) / stage.name
+    check_stage_dir(method, stage, state, stage_dir)
+    stage_dir.mkdir(parents=True, exist_ok=True)
+    manifest = stage_dir / MANIFEST
+    if not manifest.exists():
+        manifest.write_text(json.dumps(_manifest(method, stage, state), indent=1))
+    state = fit(
+        state, _train_step(stage), stage.batches, num_steps=stage.num_steps, workdir=stage_dir,
+        seed=stage.data_seed, resume=resume, ckpt_every=cfg.ckpt_every, log_every=cfg.log_every,
+        desc=f"{method.name} {stage.name}",
+    )
+    return state.params
+
+
+def restore_stage(method: Method, stage: Stage, workdir: str | Path, trained: dict[str, Any]):
+    """Returns one stage's parameters from the latest checkpoint in `workdir/<stage.name>`."""
+    state = init_state(stage, trained)
+    stage_dir = Path(workdir) / stage.name
+    check_stage_dir(method, stage, state, stage_dir)
+    try:
+        return restore_params(stage_dir, state).params
+    except FileNotFoundError as e:
+        raise FileNotFoundError(f"stage {stage.name!r} of method {method.name!r}: {e}") from e
+    except Exception as e:  # orbax reports a structure mismatch as a long tree diff
+        raise CheckpointMismatch(
+            f"stage {stage.name!r} of method {method.name!r}: the checkpoint in {stage_dir / 'ckpt'} does not "
+            f"fit this config's parameters ({type(e).__name__}: {str(e).splitlines()[0][:300]})"
+        ) from e
+
+
+def train(method: Method, cfg, prep, workdir: str | Path, resume: bool = False) -> dict[str, Any]:
+    """Returns `{stage name: trained parameters}` after training every stage of `method` in order.
+
+    With `resume`, stages already finished are restored and an interrupted one continues from its
+    latest checkpoint (the same batches and keys as an uninterrupted run); without it, a stage
+    folder that already holds checkpoints is an error (nothing is overwritten).
+    """
+    trained: dict[str, Any] = {}
+    for stage in method.stages(cfg, prep):
+        trained[stage.name] = run_stage(method, stage, cfg, workdir, trained, resume)
+    return trained
+
+
+def restore(method: Method, cfg, prep, workdir: str | Path) -> dict[str, Any]:
+    """Returns `{stage name: parameters}` from the latest checkpoints `train` wrote in `workdir`."""
+    trained: dict[str, Any] = {}
+    for stage in method.stages(cfg, prep):
+        trained[stage.name] = restore_stage(method, stage, workdir, trained)
+    return trained

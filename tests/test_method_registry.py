@@ -1,0 +1,93 @@
+"""A method from outside jaxmotion: registered by a config file, trained, resumed and evaluated with no jaxmotion edit."""
+
+import json
+
+import numpy as np
+import pytest
+
+from jaxmotion import experiment
+from jaxmotion.cli import main
+from jaxmotion.config import Config, load_config
+from jaxmotion.method import Method, Stage, register
+
+# A whole method in one config file: a learned constant velocity plus a learned spread of K samples.
+TOY = '''
+import dataclasses
+import jax, jax.numpy as jnp, optax
+from jaxmotion.config import Config
+from jaxmotion.method import Method, Stage, register
+from jaxmotion.methods.common import window_batches
+
+
+@dataclasses.dataclass
+class ToyConfig:
+    num_steps: int = 40
+    lr: float = 0.05
+
+
+def stages(cfg, prep):
+    ds, c = prep.dataset, cfg.method_config
+    t = jnp.arange(1, ds.t_pred + 1, dtype=jnp.float32)[:, None]
+
+    def loss(p, frozen, batch, key):
+        x, y = batch[:, : ds.t_his], batch[:, ds.t_his :]
+        err = jnp.mean((x[:, -1:] + t * p["v"] - y) ** 2)
+        return err, {"mse": err}
+
+    return [Stage(name="velocity", init=lambda key: {"v": jnp.zeros(ds.dim)}, optimizer=optax.adam(c.lr), loss=loss,
+                  batches=window_batches(prep, 16), num_steps=c.num_steps, init_seed=cfg.seed, data_seed=cfg.seed)]
+
+
+def predictors(cfg, ds, params, k):
+    t = jnp.arange(1, ds.t_pred + 1, dtype=jnp.float32)[:, None]
+    v = params["velocity"]["v"]
+
+    def sample(x, key):
+        mean = x[:, None, -1:] + t * v
+        return mean + 0.01 * jax.random.normal(key, (x.shape[0], k) + mean.shape[2:])
+
+    return {"toy": jax.jit(sample)}
+
+
+register(Method(name="toy", config_type=ToyConfig, stages=stages, predictors=predictors), replace=True)
+
+
+def get_config():
+    return Config(name="toy", method="toy", method_config=ToyConfig(num_steps=NSTEPS), eval_k=(3,),
+                  ckpt_every=10, log_every=10, max_test_windows=16, eval_batch=16)
+'''
+
+
+def test_a_registered_method_trains_resumes_and_evaluates_through_the_one_runner(tmp_path):
+    half, full = tmp_path / "half.py", tmp_path / "full.py"
+    half.write_text(TOY.replace("NSTEPS", "20"))
+    full.write_text(TOY.replace("NSTEPS", "40"))
+    assert main(["train", "--config", str(half), "--workdir", str(tmp_path / "a")]) == 0
+    assert main(["run", "--config", str(full), "--workdir", str(tmp_path / "a"), "--resume"]) == 0
+    assert main(["run", "--config", str(full), "--workdir", str(tmp_path / "b")]) == 0
+    log = [json.loads(line) for line in (tmp_path / "a" / "velocity" / "log.jsonl").read_text().splitlines()]
+    assert [r["step"] for r in log] == [10, 20, 30, 40] and log[-1]["mse"] < log[0]["mse"]
+    cfg = load_config(full)
+    prep = experiment.prepare(experiment.load_data(cfg), cfg.max_test_windows)
+    va = experiment.restore(cfg, prep, tmp_path / "a")["velocity"]["v"]
+    vb = experiment.restore(cfg, prep, tmp_path / "b")["velocity"]["v"]
+    np.testing.assert_array_equal(np.asarray(va), np.asarray(vb))  # Adam at a constant lr: resume is exact
+    assert float(np.abs(np.asarray(va)).max()) > 0
+    records = json.loads((tmp_path / "a" / "metrics.json").read_text())
+    assert [(r["method"], r["K"]) for r in records] == [("toy", 3)]
+    assert records[0]["metrics"]["APD"] > 0 and np.isfinite(records[0]["metrics"]["ADE"])
+    assert main(["methods"]) == 0
+
+
+def test_register_refuses_a_second_method_of_the_same_name_and_a_non_method():
+    m = Method(name="twice", config_type=dict, stages=lambda c, p: [], predictors=lambda c, d, p, k: {})
+    register(m)
+    with pytest.raises(ValueError, match="already registered"):
+        register(Method(name="twice", config_type=dict, stages=lambda c, p: [], predictors=lambda c, d, p, k: {}))
+    with pytest.raises(TypeError, match="Method"):
+        register("dlow")
+    with pytest.raises(ValueError, match="reference_futures"):
+        Method(name="x", config_type=dict, stages=None, predictors=None, reference_futures="elsewhere")
+    with pytest.raises(ValueError, match="folder name"):
+        Stage(name="a/b", init=None, optimizer=None, loss=None, batches=None, num_steps=1)
+    assert experiment.resolve(Config(method="twice", method_config={})).method_config == {}
