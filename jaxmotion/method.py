@@ -32,16 +32,19 @@ LossFn = Callable[[Any, Any, Any, jax.Array], tuple]
 class Stage:
     """One training stage: what it trains, on what, for how long.
 
-    `init(key)` returns the initial parameters (a model's full variable dict when `batch_norm`).
-    `loss(params, frozen, batch, key)` is the objective; `frozen` is a dict `{stage name: trained
-    parameters}` of the earlier stages listed in `frozen` (e.g. DLow's Q network sees the CVAE).
+    `init(key, frozen)` returns the initial parameters (a model's full variable dict when
+    `batch_norm`); `frozen` is a dict `{stage name: trained parameters}` of the earlier stages
+    listed in `frozen` (e.g. DLow's Q network sees the CVAE), so a stage may start from them.
+    `loss(params, frozen, batch, key)` is the objective. A stage with `num_steps=0` trains nothing:
+    its parameters are what `init` computes from the earlier stages (a codebook, statistics, ...),
+    checkpointed like any other stage's.
     `batches(rng)` returns one batch (a pytree of numpy arrays) for `np.random.default_rng([data_seed,
     step])`, so a resumed stage sees exactly the batches of an uninterrupted one. The stage's folder
     in the work directory is `name` (checkpoints in `name/ckpt`, log in `name/log.jsonl`).
     """
 
     name: str
-    init: Callable[[jax.Array], Any]
+    init: Callable[[jax.Array, dict], Any]
     optimizer: optax.GradientTransformation
     loss: LossFn
     batches: Callable[[np.random.Generator], Any]

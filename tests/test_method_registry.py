@@ -1,6 +1,7 @@
 """A method from outside jaxmotion: registered by a config file, trained, resumed and evaluated with no jaxmotion edit."""
 
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -9,6 +10,7 @@ from jaxmotion import experiment
 from jaxmotion.cli import main
 from jaxmotion.config import Config, load_config
 from jaxmotion.method import Method, Stage, register
+from jaxmotion.train.runner import CheckpointMismatch
 
 # A whole method in one config file: a learned constant velocity plus a learned spread of K samples.
 TOY = '''
@@ -34,8 +36,12 @@ def stages(cfg, prep):
         err = jnp.mean((x[:, -1:] + t * p["v"] - y) ** 2)
         return err, {"mse": err}
 
-    return [Stage(name="velocity", init=lambda key: {"v": jnp.zeros(ds.dim)}, optimizer=optax.adam(c.lr), loss=loss,
-                  batches=window_batches(prep, 16), num_steps=c.num_steps, init_seed=cfg.seed, data_seed=cfg.seed)]
+    velocity = Stage(name="velocity", init=lambda key, _frozen: {"v": jnp.zeros(ds.dim)}, optimizer=optax.adam(c.lr),
+                     loss=loss, batches=window_batches(prep, 16), num_steps=c.num_steps, init_seed=cfg.seed, data_seed=cfg.seed)
+    # A stage that trains nothing: its parameters are computed from the frozen velocity stage.
+    spread = Stage(name="spread", init=lambda key, frozen: {"s": jnp.abs(frozen["velocity"]["v"]).mean() + 0.01},
+                   optimizer=optax.set_to_zero(), loss=None, batches=None, num_steps=0, frozen=("velocity",))
+    return [velocity, spread]
 
 
 def predictors(cfg, ds, params, k):
@@ -44,7 +50,7 @@ def predictors(cfg, ds, params, k):
 
     def sample(x, key):
         mean = x[:, None, -1:] + t * v
-        return mean + 0.01 * jax.random.normal(key, (x.shape[0], k) + mean.shape[2:])
+        return mean + params["spread"]["s"] * jax.random.normal(key, (x.shape[0], k) + mean.shape[2:])
 
     return {"toy": jax.jit(sample)}
 
@@ -63,6 +69,10 @@ def test_a_registered_method_trains_resumes_and_evaluates_through_the_one_runner
     half.write_text(TOY.replace("NSTEPS", "20"))
     full.write_text(TOY.replace("NSTEPS", "40"))
     assert main(["train", "--config", str(half), "--workdir", str(tmp_path / "a")]) == 0
+    # The computed stage was made from the 20-step velocity: once that trains on, it is stale, and said so.
+    with pytest.raises(CheckpointMismatch, match=r"stage 'spread'.*trained on stage 'velocity' at step 20, which is now at step 40"):
+        main(["run", "--config", str(full), "--workdir", str(tmp_path / "a"), "--resume"])
+    shutil.rmtree(tmp_path / "a" / "spread")
     assert main(["run", "--config", str(full), "--workdir", str(tmp_path / "a"), "--resume"]) == 0
     assert main(["run", "--config", str(full), "--workdir", str(tmp_path / "b")]) == 0
     log = [json.loads(line) for line in (tmp_path / "a" / "velocity" / "log.jsonl").read_text().splitlines()]
@@ -73,6 +83,8 @@ def test_a_registered_method_trains_resumes_and_evaluates_through_the_one_runner
     vb = experiment.restore(cfg, prep, tmp_path / "b")["velocity"]["v"]
     np.testing.assert_array_equal(np.asarray(va), np.asarray(vb))  # Adam at a constant lr: resume is exact
     assert float(np.abs(np.asarray(va)).max()) > 0
+    spread = experiment.restore(cfg, prep, tmp_path / "a")["spread"]["s"]
+    assert float(spread) == pytest.approx(float(np.abs(np.asarray(va)).mean()) + 0.01, rel=1e-6)
     records = json.loads((tmp_path / "a" / "metrics.json").read_text())
     assert [(r["method"], r["K"]) for r in records] == [("toy", 3)]
     assert records[0]["metrics"]["APD"] > 0 and np.isfinite(records[0]["metrics"]["ADE"])

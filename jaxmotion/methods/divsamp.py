@@ -49,7 +49,7 @@ def cvae_stage(cfg, prep, d: DivSampConfig) -> Stage:
     )
     return Stage(
         name="cvae",
-        init=lambda key: dict(model.init(key, cx, cx, jax.random.key(0), train=False)),
+        init=lambda key, _frozen: dict(model.init(key, cx, cx, jax.random.key(0), train=False)),
         optimizer=bn_optimizer(inner),
         loss=lambda v, _frozen, batch, key: loss(v, batch, key),
         batches=window_batches(prep, d.cvae_batch_size),
@@ -67,7 +67,7 @@ def sampler_stage(cfg, prep, d: DivSampConfig, name: str = "sampler") -> Stage:
     )
     return Stage(
         name=name,
-        init=lambda key: dict(model.init(key, _dummy_nodes(ds, d), jax.random.key(0), 2, train=False)),
+        init=lambda key, _frozen: dict(model.init(key, _dummy_nodes(ds, d), jax.random.key(0), 2, train=False)),
         optimizer=bn_optimizer(adam(d.lr, d.num_steps, d.lr_fix_fraction)),
         loss=lambda v, frozen, batch, key: loss(v, cvae_variables=frozen["cvae"], batch=batch, key=key),
         batches=window_batches(prep, d.batch_size),

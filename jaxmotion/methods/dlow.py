@@ -31,7 +31,7 @@ def stages(cfg, prep) -> list[Stage]:
     out = [
         Stage(
             name="cvae",
-            init=lambda key: cvae.init(key, x, y, jax.random.key(0)),
+            init=lambda key, _frozen: cvae.init(key, x, y, jax.random.key(0)),
             optimizer=adam(c.cvae.lr, c.cvae.num_steps, c.cvae.lr_fix_fraction),
             loss=lambda p, _frozen, batch, key: cvae_loss(p, batch, key),
             batches=window_batches(prep, c.cvae.batch_size),
@@ -47,7 +47,7 @@ def stages(cfg, prep) -> list[Stage]:
         out.append(
             Stage(
                 name=f"dlow_k{nk}",
-                init=functools.partial(lambda key, q: q.init(key, x, jnp.zeros((1, c.cvae.nz))), q=q),
+                init=functools.partial(lambda key, _frozen, q: q.init(key, x, jnp.zeros((1, c.cvae.nz))), q=q),
                 optimizer=adam(c.q.lr, c.q.num_steps, c.q.lr_fix_fraction),
                 loss=functools.partial(
                     lambda p, frozen, batch, key, q_loss: q_loss(p, cvae_params=frozen["cvae"], batch=batch, key=key),

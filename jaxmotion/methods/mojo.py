@@ -32,7 +32,7 @@ def stages(cfg, prep) -> list[Stage]:
     out = [
         Stage(
             name="cvae",
-            init=lambda key: model.init(key, x, y, jax.random.key(0)),
+            init=lambda key, _frozen: model.init(key, x, y, jax.random.key(0)),
             optimizer=adam(m.lr, m.num_steps, m.lr_fix_fraction),
             loss=lambda p, _frozen, batch, key: cvae_loss(p, batch, key),
             batches=window_batches(prep, m.batch_size),
@@ -45,7 +45,7 @@ def stages(cfg, prep) -> list[Stage]:
         out.append(
             Stage(
                 name=f"q_k{nk}",
-                init=functools.partial(lambda key, q: q.init(key, x, jnp.zeros((1, q.n_low, m.nz))), q=q),
+                init=functools.partial(lambda key, _frozen, q: q.init(key, x, jnp.zeros((1, q.n_low, m.nz))), q=q),
                 optimizer=adam(m.q_lr, m.q_num_steps, m.q_lr_fix_fraction),
                 loss=functools.partial(
                     lambda p, frozen, batch, key, q_loss: q_loss(p, cvae_params=frozen["cvae"], batch=batch, key=key),

@@ -143,6 +143,9 @@ def fit(
     key = jax.random.key(seed)
     start = int(state.step)
     if start >= num_steps:
+        if latest is None:  # a stage with nothing to train still leaves its (computed) parameters
+            mngr.save(start, args=ocp.args.StandardSave(state.replace(frozen=None)), force=True)
+            mngr.wait_until_finished()
         mngr.close()
         return state
     t0 = time.perf_counter()

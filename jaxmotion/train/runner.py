@@ -33,9 +33,9 @@ def init_state(stage: Stage, trained: dict[str, Any] | None = None) -> TrainStat
     missing = [n for n in stage.frozen if n not in trained]
     if missing:
         raise ValueError(f"stage {stage.name!r} needs the trained parameters of {missing} (train those stages first)")
-    params = stage.init(jax.random.key(stage.init_seed))
-    frozen = {n: trained[n] for n in stage.frozen} if stage.frozen else None
-    return create_state(params, stage.optimizer, frozen=frozen)
+    frozen = {n: trained[n] for n in stage.frozen}
+    params = stage.init(jax.random.key(stage.init_seed), frozen)
+    return create_state(params, stage.optimizer, frozen=frozen or None)
 
 
 def param_shapes(params) -> dict[str, list]:
@@ -44,12 +44,19 @@ def param_shapes(params) -> dict[str, list]:
     return {jax.tree_util.keystr(p): [list(v.shape), str(v.dtype)] for p, v in leaves}
 
 
-def _manifest(method: Method, stage: Stage, state: TrainState) -> dict:
-    return {"method": method.name, "stage": stage.name, "num_steps": stage.num_steps, "params": param_shapes(state.params)}
+def _manifest(method: Method, stage: Stage, state: TrainState, upstream: dict[str, int]) -> dict:
+    return {
+        "method": method.name, "stage": stage.name, "num_steps": stage.num_steps,
+        "upstream": {n: upstream[n] for n in stage.frozen}, "params": param_shapes(state.params),
+    }
 
 
-def check_stage_dir(method: Method, stage: Stage, state: TrainState, stage_dir: Path) -> None:
-    """Raises `CheckpointMismatch` naming the stage and the difference when `stage_dir` was written for another stage."""
+def check_stage_dir(method: Method, stage: Stage, state: TrainState, stage_dir: Path, upstream: dict[str, int] | None = None) -> None:
+    """Raises `CheckpointMismatch` naming the stage and the difference when `stage_dir` was written for another stage.
+
+    `upstream` maps the frozen stages to the step they are trained to: a stage trained on an earlier
+    state of them (a resumed run that trained them further) is stale, and is reported, not reused.
+    """
     path = stage_dir / MANIFEST
     if not path.exists():
         return
@@ -74,6 +81,13 @@ def check_stage_dir(method: Method, stage: Stage, state: TrainState, stage_dir: 
             f"stage {stage.name!r} of method {method.name!r}: the checkpoints in {stage_dir} do not fit this config "
             f"({what}); was the config changed after training?"
         )
+    for name, step in (upstream or {}).items():
+        was = found.get("upstream", {}).get(name)
+        if was is not None and was != step:
+            raise CheckpointMismatch(
+                f"stage {stage.name!r} of method {method.name!r} in {stage_dir} was trained on stage {name!r} at step "
+                f"{was}, which is now at step {step}; delete {stage_dir} to train it again on the new {name!r}"
+            )
 
 
 def _train_step(stage: Stage):
@@ -81,15 +95,22 @@ def _train_step(stage: Stage):
     return make(stage.loss, stage.optimizer)
 
 
-def run_stage(method: Method, stage: Stage, cfg, workdir: str | Path, trained: dict[str, Any], resume: bool = False):
-    """Returns the trained parameters of one stage in `workdir/<stage.name>` (its frozen inputs from `trained`)."""
+def run_stage(
+    method: Method, stage: Stage, cfg, workdir: str | Path, trained: dict[str, Any], resume: bool = False,
+    upstream: dict[str, int] | None = None,
+):
+    """Returns the trained parameters of one stage in `workdir/<stage.name>` (its frozen inputs from `trained`).
+
+    `upstream` maps the frozen stages to their step counts (default: their configured `num_steps`).
+    """
     state = init_state(stage, trained)
     stage_dir = Path(workdir) / stage.name
-    check_stage_dir(method, stage, state, stage_dir)
+    upstream = {n: int(v) for n, v in (upstream or {}).items()}
+    check_stage_dir(method, stage, state, stage_dir, upstream)
     stage_dir.mkdir(parents=True, exist_ok=True)
     manifest = stage_dir / MANIFEST
     if not manifest.exists():
-        manifest.write_text(json.dumps(_manifest(method, stage, state), indent=1))
+        manifest.write_text(json.dumps(_manifest(method, stage, state, upstream), indent=1))
     state = fit(
         state, _train_step(stage), stage.batches, num_steps=stage.num_steps, workdir=stage_dir,
         seed=stage.data_seed, resume=resume, ckpt_every=cfg.ckpt_every, log_every=cfg.log_every,
@@ -122,8 +143,10 @@ def train(method: Method, cfg, prep, workdir: str | Path, resume: bool = False) 
     folder that already holds checkpoints is an error (nothing is overwritten).
     """
     trained: dict[str, Any] = {}
+    steps: dict[str, int] = {}
     for stage in method.stages(cfg, prep):
-        trained[stage.name] = run_stage(method, stage, cfg, workdir, trained, resume)
+        trained[stage.name] = run_stage(method, stage, cfg, workdir, trained, resume, {n: steps[n] for n in stage.frozen})
+        steps[stage.name] = stage.num_steps
     return trained
 
 
