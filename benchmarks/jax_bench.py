@@ -99,7 +99,7 @@ class Builders:
         p = model.init(jax.random.key(0), self.data(1, s.t_his), self.data(1, c.t_pred), jax.random.key(1))
         if c.kind == "train_cvae":
             tx = optax.adam(cfg.lr)
-            loss = functools.partial(mojo.cvae_loss, model, t_his=s.t_his, cfg=cfg)
+            loss = functools.partial(mojo.cvae_loss, model, t_his=s.t_his, **mojo.cvae_loss_weights(cfg))
             step = make_train_step(lambda q, _f, b, k: loss(q, b, k), tx)
             return _train_runner(step, create_state(p, tx), self.data(c.batch, s.t_his + c.t_pred))
         x = self.data(c.batch, s.t_his)
@@ -110,7 +110,7 @@ class Builders:
         if c.kind == "sample":
             return _sample_runner(lambda p, qp, x, key: mojo.sample_mojo(model, p, q, qp, x, key), p, qp, x, jax.random.key(2))
         tx = optax.adam(cfg.q_lr)
-        loss = functools.partial(mojo.q_loss, q, model=model, t_his=s.t_his, cfg=cfg)
+        loss = functools.partial(mojo.q_loss, q, model=model, t_his=s.t_his, **mojo.q_loss_weights(cfg))
         step = make_train_step(lambda qp, f, b, k: loss(qp, cvae_params=f, batch=b, key=k), tx)
         return _train_runner(step, create_state(qp, tx, frozen=p), self.data(c.batch, s.t_his + c.t_pred))
 

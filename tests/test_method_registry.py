@@ -103,3 +103,20 @@ def test_register_refuses_a_second_method_of_the_same_name_and_a_non_method():
     with pytest.raises(ValueError, match="folder name"):
         Stage(name="a/b", init=None, optimizer=None, loss=None, batches=None, num_steps=1)
     assert experiment.resolve(Config(method="twice", method_config={})).method_config == {}
+
+
+def test_reference_futures_from_training_windows():
+    import dataclasses
+
+    ds = experiment.load_data(Config())
+    # Training on the test sequences themselves: every test window is also a training window.
+    prep = experiment.prepare(dataclasses.replace(ds, train=ds.test), 20)
+    stub = dict(config_type=dict, stages=lambda c, p: [], predictors=lambda c, d, p, k: {})
+    (idx, mask), none = experiment.reference_sets(Method(name="t", **stub), prep)
+    assert none is None and int(np.asarray(idx).max()) < len(prep.windows)
+    (idx, mask), futures = experiment.reference_sets(Method(name="t", reference_futures="train", **stub), prep)
+    idx, mask = np.asarray(idx), np.asarray(mask)
+    assert futures.shape[1:] == (ds.t_pred, ds.dim) and len(futures) > len(prep.windows)
+    for i in range(len(prep.windows)):
+        members = futures[idx[i][mask[i]]]
+        assert len(members) > 0 and np.abs(members - prep.y[i]).max(axis=(1, 2)).min() == 0.0  # its own future is among them

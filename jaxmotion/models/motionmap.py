@@ -1,0 +1,522 @@
+"""MotionMap (Hosseininejad, Shukla et al., CVPR 2025): a heatmap over future motions, modes ranked by confidence.
+
+The method, in the order it is trained (paper Sec. 3-4, the authors' `code/` release):
+
+1. An autoencoder of the future given the past. GRU encoders `E_X(X) = z_x`, `E_Y(Y) = z_y` (128),
+   a fusion MLP `f = tanh(Lin(tanh(Lin([z_x, z_y]))))` (256), and a GRU-cell decoder that receives
+   `f` at every step and reconstructs the whole window `[X, Y]`, residual to the first observed
+   frame. Its target future is a random member of the window's multimodal ground truth, motion
+   transferred onto the window's skeleton. An uncertainty head (MLP on the stopped-gradient `f`)
+   predicts `log sigma` per joint per frame, trained by the heteroscedastic NLL (Eq. 1)
+   `e / sigma^2 + log sigma^2` with the stopped squared error `e`.
+2. The map: the `z_y` codes of training futures embedded in 2-D by t-SNE (openTSNE, fitted on a
+   strided subset with perplexity 100, cosine metric, PCA initialisation, then every code
+   transformed at perplexity 20), scaled into a square `size x size` grid and rounded to cells.
+   The codebook maps a cell to the mean code of the futures in it; an empty cell takes the code
+   of its nearest filled cell.
+3. The heatmap model: a GRU over the last three observed frames (motion transferred onto a fixed
+   template skeleton), an MLP to the flattened map, a stack of 1 x 1 convolutions; logits trained
+   by weighted binary cross-entropy against Gaussian ground-truth maps (a bump of sigma ~2.8 cells
+   at each multimodal future's cell, combined by a pixel-wise max).
+4. Fine-tuning: the fusion MLP and decoder (and uncertainty head) learn to decode codebook codes.
+
+Inference: local maxima of the predicted map (minimum distance, relative threshold), ranked by
+confidence (the map's value at the peak); each peak's codebook code is decoded with X.
+
+Everything below is a pure function or a Flax module; the stage wiring is `jaxmotion/methods/motionmap.py`.
+Frame vectors drop the root (PROTOCOL sec. 1): joint `j` of a frame is skeleton joint `j + 1`, and
+a link whose parent is the root starts at the origin.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+from pathlib import Path
+from typing import NamedTuple
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import lax
+from jaxtyping import Array, Bool, Float, Int
+
+from jaxmotion.metrics import MMSets
+from jaxmotion.nn.gru import GRU, GRUCell, gru_update
+from jaxmotion.nn.mlp import MLP
+
+
+# --------------------------------------------------------------------------------------------
+# Settings.
+
+
+@dataclasses.dataclass
+class MotionMapConfig:
+    """MotionMap's settings (`Config.method_config` of method "motionmap"); defaults: the synthetic job.
+
+    The release's values are noted where ours differ (its budget is 500 epochs per stage on a GPU).
+    """
+
+    nh_rnn: int = 128
+    nh_fuse: int = 256
+    nh_uncertainty: int = 256
+    n_uncertainty_layers: int = 5
+    hm_size: int = 64  # release: 128
+    hm_sigma: float = 8.0**0.5  # release: covariance diag(8, 8)
+    hm_channels: int = 8
+    hm_convs: int = 6
+    pos_weight: float = 10.0  # release `posWt`
+    descriptor_frames: int = 3
+    mm_threshold: float | None = None  # None: the dataset's PROTOCOL threshold
+    max_members: int = 64  # multimodal futures drawn into one ground-truth map (a random subset of larger sets)
+    pool_stride: int | None = None  # training windows every `pool_stride` frames (None: t_his)
+    tsne_fit_points: int = 2000  # the strided subset openTSNE is fitted on
+    tsne_perplexity_fit: float = 100.0
+    tsne_perplexity_transform: float = 20.0
+    peak_min_distance: int = 5  # release `peak_interval`
+    peak_threshold_rel: float = 0.35
+    max_peaks: int = 49
+    loss_scale: float = 10.0  # the release multiplies positions by 10 "for improved optimization"
+    lr: float = 1e-3
+    batch_size: int = 64
+    ae_steps: int = 2000
+    hm_steps: int = 1500
+    ft_steps: int = 500
+    mm_cache_dir: str | None = None  # where MM ground-truth sets are cached (None: not cached)
+
+
+# --------------------------------------------------------------------------------------------
+# Motion transfer and MotionMap's multimodal ground truth (appendix A).
+
+
+def frame_parents(parents: tuple[int, ...]) -> tuple[int, ...]:
+    """Returns the parent of every frame joint (skeleton joint j + 1), -1 where the parent is the dropped root."""
+    parents = tuple(int(p) for p in parents)
+    if parents[0] != -1 or any(not 0 <= p < j for j, p in enumerate(parents) if j):
+        raise ValueError(f"motion transfer needs joint 0 as the root and every parent before its child, got parents {parents}")
+    return tuple(p - 1 for p in parents[1:])
+
+
+def motion_transfer(
+    source: Float[Array, "*s d"], target: Float[Array, "*t d"], parents: tuple[int, ...]
+) -> Float[Array, "*o d"]:
+    """Returns `source`'s motion on `target`'s skeleton (MotionMap appendix A), broadcast over leading axes.
+
+    Every link keeps the direction it has in `source` (its spherical angles) and takes the length it
+    has in `target`; joints are rebuilt parent to child from the root at the origin. `parents` is
+    the skeleton's (root first, dropped from the frame vectors).
+    """
+    fp = frame_parents(parents)
+    src = source.reshape(source.shape[:-1] + (-1, 3))
+    tgt = target.reshape(target.shape[:-1] + (-1, 3))
+    shape = jnp.broadcast_shapes(src.shape[:-2], tgt.shape[:-2]) + (3,)
+    zero = jnp.zeros((), source.dtype)
+    out: list = []
+    for j, p in enumerate(fp):
+        v_src = src[..., j, :] - (src[..., p, :] if p >= 0 else zero)
+        v_tgt = tgt[..., j, :] - (tgt[..., p, :] if p >= 0 else zero)
+        norm = jnp.linalg.norm(v_src, axis=-1, keepdims=True)
+        direction = v_src / jnp.maximum(norm, 1e-12)
+        length = jnp.linalg.norm(v_tgt, axis=-1, keepdims=True)
+        base = out[p] if p >= 0 else jnp.zeros(shape, source.dtype)
+        out.append(jnp.broadcast_to(base + length * direction, shape))
+    return jnp.stack(out, axis=-2).reshape(shape[:-1] + (-1,))
+
+
+def _near_fn(parents: tuple[int, ...]):
+    @jax.jit
+    def near(desc_q: Float[Array, "c f d"], desc_ref: Float[Array, "r f d"], thr: Float[Array, ""]) -> Bool[Array, "c r"]:
+        # Every reference descriptor onto each query's skeleton (its last observed frame).
+        moved = motion_transfer(desc_ref[None], desc_q[:, None, -1:], parents)  # (c, r, f, d)
+        diff = moved.reshape(moved.shape[:2] + (-1,)) - desc_q.reshape(desc_q.shape[0], 1, -1)
+        return jnp.sqrt(jnp.sum(diff**2, axis=-1)) < thr
+
+    return near
+
+
+def motionmap_mm_sets(
+    desc: Float[np.ndarray, "n f d"],
+    thr: float,
+    parents: tuple[int, ...],
+    *,
+    reference_desc: Float[np.ndarray, "r f d"] | None = None,
+    max_chunk_elems: int = 4_000_000,
+    cache_dir: str | Path | None = None,
+) -> MMSets:
+    """Returns left-packed `MMSets` of MotionMap's multimodal ground truth (appendix A; PROTOCOL sec. 2 option).
+
+    `desc[i]` is window i's descriptor (its last three observed frames). Candidate j is a member of
+    MM(i) when `||vec(transfer(desc_j -> skeleton of i)) - vec(desc_i)|| < thr`, the skeleton of i
+    being its last observed frame. Candidates are the windows themselves (i is always a member of
+    its own set) or `reference_desc` (e.g. training windows, MotionMap Tables 1-2). Chunked over
+    query windows (about `max_chunk_elems` numbers per chunk); with `cache_dir` the sets are stored
+    in a file keyed by the data, the threshold and the skeleton.
+    """
+    desc = np.asarray(desc, np.float32)
+    if not np.all(np.isfinite(desc)):
+        raise ValueError("motionmap_mm_sets: `desc` contains NaN or inf")
+    if not np.isfinite(thr) or thr <= 0:
+        raise ValueError(f"motionmap_mm_sets: `thr` must be a positive distance, got {thr}")
+    ref = desc if reference_desc is None else np.asarray(reference_desc, np.float32)
+    cache = None
+    if cache_dir is not None:
+        h = hashlib.sha1(desc.tobytes())
+        h.update(ref.tobytes() if reference_desc is not None else b"self")
+        h.update(repr((float(thr), tuple(parents), desc.shape, ref.shape)).encode())
+        cache = Path(cache_dir) / f"motionmap_mm_{h.hexdigest()[:20]}.npz"
+        if cache.exists():
+            z = np.load(cache)
+            return MMSets(jnp.asarray(z["idx"]), jnp.asarray(z["mask"]))
+    near_fn = _near_fn(tuple(parents))
+    n, r = desc.shape[0], ref.shape[0]
+    c = int(max(1, min(n, max_chunk_elems // max(1, r * desc.shape[1] * desc.shape[2]))))
+    ref_j, thr_j = jnp.asarray(ref), jnp.asarray(thr, jnp.float32)
+    rows, cols = [], []
+    for s in range(0, n, c):
+        q = desc[s : s + c]
+        pad = c - q.shape[0]
+        if pad:
+            q = np.concatenate([q, np.repeat(q[-1:], pad, axis=0)])
+        near = np.asarray(near_fn(jnp.asarray(q), ref_j, thr_j))[: c - pad]
+        if reference_desc is None:
+            k = np.arange(near.shape[0])
+            near[k, s + k] = True
+        i, j = np.nonzero(near)
+        rows.append(i + s)
+        cols.append(j)
+    rows, cols = np.concatenate(rows), np.concatenate(cols)
+    counts = np.bincount(rows, minlength=n)
+    m = max(1, int(counts.max(initial=0)))
+    pos = np.arange(rows.size) - np.repeat(np.cumsum(counts) - counts, counts)
+    idx, mask = np.zeros((n, m), np.int32), np.zeros((n, m), bool)
+    idx[rows, pos], mask[rows, pos] = cols, True
+    if cache is not None:
+        cache.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(cache, idx=idx, mask=mask)
+    return MMSets(jnp.asarray(idx), jnp.asarray(mask))
+
+
+def mm_errors_transferred(
+    pred: Float[Array, "n k t d"],
+    last_pose: Float[Array, "n d"],
+    futures: Float[Array, "r t d"],
+    idx: Int[Array, "n m"],
+    mask: Bool[Array, "n m"],
+    parents: tuple[int, ...],
+) -> tuple[Float[Array, " n"], Float[Array, " n"]]:
+    """Returns per-window `(MMADE, MMFDE)` with each MM future motion-transferred onto the window's skeleton first.
+
+    MotionMap's evaluation (PROTOCOL sec. 2, MotionMap option): `futures[idx[i, m]]` is moved onto
+    the skeleton of `last_pose[i]` before the min-over-K ADE / FDE term. NaN for an empty set.
+    """
+
+    def one(p, pose, ix, mk):
+        def member(m):
+            f = motion_transfer(futures[ix[m]], pose, parents)
+            d = jnp.sqrt(jnp.sum((p - f[None]) ** 2, axis=-1))  # (k, t)
+            return jnp.min(jnp.mean(d, -1)), jnp.min(d[:, -1])
+
+        a, f = lax.map(member, jnp.arange(ix.shape[0]))
+        cnt = jnp.sum(mk)
+        return jnp.sum(jnp.where(mk, a, 0.0)) / cnt, jnp.sum(jnp.where(mk, f, 0.0)) / cnt
+
+    return jax.vmap(one)(pred, last_pose, idx, mask)
+
+
+# --------------------------------------------------------------------------------------------
+# The map: t-SNE, grid scaling, codebook, ground-truth heatmaps, peaks.
+
+
+def tsne_embed(
+    codes: Float[np.ndarray, "n c"], *, fit_points: int, perplexity_fit: float = 100.0,
+    perplexity_transform: float = 20.0, seed: int = 0, n_jobs: int = 2,
+) -> Float[np.ndarray, "n 2"]:
+    """Returns 2-D t-SNE coordinates of every code: openTSNE fitted on a strided subset, then `transform` (release recipe).
+
+    Needs the optional dependency openTSNE (`pip install 'jaxmotion[motionmap]'`).
+    """
+    try:
+        from openTSNE import TSNE
+    except ImportError as e:  # pragma: no cover - depends on the environment
+        raise ImportError("MotionMap's map needs openTSNE: pip install 'jaxmotion[motionmap]' (or pip install openTSNE)") from e
+    codes = np.asarray(codes, np.float64)
+    stride = max(1, -(-codes.shape[0] // fit_points))
+    sub = codes[::stride]
+    perp = float(min(perplexity_fit, (sub.shape[0] - 1) / 3.0))
+    emb = TSNE(perplexity=perp, initialization="pca", metric="cosine", n_jobs=n_jobs, random_state=seed, verbose=False).fit(sub)
+    out = emb.transform(codes, perplexity=float(min(perplexity_transform, perp)))
+    return np.asarray(out, np.float32)
+
+
+def grid_scaling(points: Float[np.ndarray, "n 2"], size: int, margin: float = 0.02) -> tuple[np.ndarray, float]:
+    """Returns `(origin (2,), scale)` mapping points into a `size x size` grid, one scale for both axes, 2% margins, centred."""
+    lo, hi = points.min(0), points.max(0)
+    extent = float(np.max(hi - lo)) * (1 + 2 * margin) + 1e-12
+    scale = (size - 1) / extent
+    origin = (lo + hi) / 2 - extent / 2
+    return origin.astype(np.float32), float(scale)
+
+
+def to_cells(points: Float[Array, "*n 2"], origin, scale: float, size: int) -> Int[Array, "*n 2"]:
+    """Returns the grid cell (row, col) of every point: `round((p - origin) * scale)`, clipped into the grid."""
+    return jnp.clip(jnp.round((points - origin) * scale), 0, size - 1).astype(jnp.int32)
+
+
+def build_codebook(
+    cells: Int[np.ndarray, "n 2"], codes: Float[np.ndarray, "n c"], size: int
+) -> tuple[Float[np.ndarray, "size size c"], Bool[np.ndarray, "size size"]]:
+    """Returns `(table, filled)`: the mean code of the futures in each cell; an empty cell takes its nearest filled cell's.
+
+    "Nearest" is Euclidean on the grid (the release searches breadth-first over 4-neighbours).
+    """
+    from scipy.ndimage import distance_transform_edt
+
+    cells, codes = np.asarray(cells), np.asarray(codes, np.float64)
+    flat = cells[:, 0] * size + cells[:, 1]
+    sums = np.zeros((size * size, codes.shape[1]))
+    np.add.at(sums, flat, codes)
+    counts = np.bincount(flat, minlength=size * size)
+    filled = (counts > 0).reshape(size, size)
+    table = (sums / np.maximum(counts, 1)[:, None]).reshape(size, size, -1)
+    _, (ri, ci) = distance_transform_edt(~filled, return_indices=True)
+    return table[ri, ci].astype(np.float32), filled
+
+
+def gaussian_heatmap(
+    cells: Float[Array, "m 2"], mask: Bool[Array, " m"], size: int, sigma: float
+) -> Float[Array, "size size"]:
+    """Returns MotionMap's ground-truth map: the pixel-wise max of a Gaussian bump `exp(-|u - c|^2 / 2 sigma^2)` per valid cell."""
+    u = jnp.arange(size, dtype=jnp.float32)
+    d2 = (u[None, :, None] - cells[:, 0, None, None]) ** 2 + (u[None, None, :] - cells[:, 1, None, None]) ** 2
+    bumps = jnp.exp(-d2 / (2 * sigma**2))
+    return jnp.max(jnp.where(mask[:, None, None], bumps, 0.0), axis=0)
+
+
+class Peaks(NamedTuple):
+    """Peaks of a batch of maps, ranked by confidence: `cells[b, :n_b]` are valid where `valid`."""
+
+    cells: Int[Array, "b p 2"]
+    confidence: Float[Array, "b p"]
+    valid: Bool[Array, "b p"]
+
+
+def find_peaks(
+    hm: Float[Array, "b h w"], *, min_distance: int, threshold_rel: float, max_peaks: int
+) -> Peaks:
+    """Returns the local maxima of each map ranked by value (`skimage.feature.peak_local_max` as the release uses it).
+
+    A cell is a peak when it equals the max over its `(2 r + 1)^2` neighbourhood (`r = min_distance`)
+    and exceeds `threshold_rel * max(map)`; of peaks closer than `r` (Chebyshev, i.e. plateaus) only
+    the higher-ranked is kept. Vectorised over maps, jittable; at most `max_peaks` per map.
+    """
+    b, h, w = hm.shape
+    win = 2 * min_distance + 1
+    pooled = lax.reduce_window(hm, -jnp.inf, lax.max, (1, win, win), (1, 1, 1), "SAME")
+    top = jnp.max(hm, axis=(1, 2), keepdims=True)
+    is_peak = (hm >= pooled) & (hm > threshold_rel * top)
+    score = jnp.where(is_peak, hm, -jnp.inf).reshape(b, -1)
+    p = min(max_peaks, h * w)
+    vals, flat = lax.top_k(score, p)
+    cells = jnp.stack([flat // w, flat % w], axis=-1)
+    valid = jnp.isfinite(vals)
+
+    def keep_step(i, keep):
+        cheb = jnp.max(jnp.abs(cells - cells[:, i : i + 1]), axis=-1)  # (b, p)
+        blocked = jnp.any(keep & (cheb <= min_distance) & (jnp.arange(p) < i)[None], axis=-1)
+        return keep.at[:, i].set(valid[:, i] & ~blocked)
+
+    keep = lax.fori_loop(0, p, keep_step, jnp.zeros_like(valid))
+    order = jnp.argsort(~keep, axis=-1, stable=True)  # kept peaks first, still in value order
+    take = lambda a: jnp.take_along_axis(a, order if a.ndim == 2 else order[..., None], axis=1)
+    keep_sorted = take(keep)
+    return Peaks(take(cells), jnp.where(keep_sorted, take(vals), 0.0), keep_sorted)
+
+
+def top_k_slots(valid: Bool[Array, "b p"], k: int) -> Int[Array, "b k"]:
+    """Returns, per map, the peak index used for each of K outputs: the top-K peaks, then the ranking again from the best.
+
+    With n < K peaks, output k takes peak `k mod n` (the modes repeated in confidence order); with
+    no peak at all, peak 0 (whose cell is then the map's argmax region of a flat map).
+    """
+    n = jnp.maximum(jnp.sum(valid, axis=-1, keepdims=True), 1)
+    return jnp.arange(k)[None] % n
+
+
+# --------------------------------------------------------------------------------------------
+# Losses.
+
+
+def heteroscedastic_nll(err: Float[Array, "*s"], log_sigma: Float[Array, "*s"]) -> Float[Array, "*s"]:
+    """Returns MotionMap's Eq. (1) `e / sigma^2 + log sigma^2` per element; minimised over sigma at `sigma^2 = e`."""
+    return err * jnp.exp(-2.0 * log_sigma) + 2.0 * log_sigma
+
+
+def weighted_bce(logits: Float[Array, "*s"], target: Float[Array, "*s"], pos_weight: float) -> Float[Array, "*s"]:
+    """Returns `-(w t log s(l) + (1 - t) log(1 - s(l)))` per element (`torch.nn.BCEWithLogitsLoss(pos_weight=w)`)."""
+    return -(pos_weight * target * jax.nn.log_sigmoid(logits) + (1 - target) * jax.nn.log_sigmoid(-logits))
+
+
+# --------------------------------------------------------------------------------------------
+# Networks.
+
+
+class Decoder(nn.Module):
+    """Returns `(b, t_total, dim)` frames: a GRU cell fed the fused code at every step, residual to `x0`."""
+
+    dim: int
+    t_total: int
+    nh: int = 128
+
+    @nn.compact
+    def __call__(self, fused: Float[Array, "b f"], x0: Float[Array, "b d"]) -> Float[Array, "b t d"]:
+        h0 = jnp.tanh(nn.Dense(self.nh, name="h0")(fused))
+        cell = GRUCell(self.nh, name="cell")
+        cell(h0, fused)  # creates the parameters at init
+        p = cell.variables["params"]
+        gi = fused @ p["weight_ih"] + p["bias_ih"]  # the input never changes over time
+
+        def step(h, _):
+            h = gru_update(gi, h @ p["weight_hh"] + p["bias_hh"], h)
+            return h, h
+
+        _, hs = lax.scan(step, h0, None, length=self.t_total)
+        return x0[:, None] + nn.Dense(self.dim, name="out")(jnp.swapaxes(hs, 0, 1))
+
+
+class MotionMapAE(nn.Module):
+    """MotionMap's autoencoder with its uncertainty head; call its methods through `apply(..., method=...)`."""
+
+    dim: int
+    t_his: int
+    t_pred: int
+    nh_rnn: int = 128
+    nh_fuse: int = 256
+    nh_uncertainty: int = 256
+    n_uncertainty_layers: int = 5
+
+    def setup(self):
+        self.enc_x = GRU(self.nh_rnn)
+        self.enc_y = GRU(self.nh_rnn)
+        self.fusion = MLP((self.nh_fuse, self.nh_fuse))
+        self.decoder = Decoder(self.dim, self.t_his + self.t_pred, self.nh_rnn)
+        self.uncertainty = MLP((self.nh_uncertainty,) * self.n_uncertainty_layers, activation="elu")
+        self.uncertainty_out = nn.Dense((self.t_his + self.t_pred) * (self.dim // 3))
+
+    def encode_x(self, x: Float[Array, "b t_his d"]) -> Float[Array, "b h"]:
+        return self.enc_x(x)[:, -1]
+
+    def encode_y(self, y: Float[Array, "b t_pred d"]) -> Float[Array, "b h"]:
+        return self.enc_y(y)[:, -1]
+
+    def decode(self, x: Float[Array, "b t_his d"], z_y: Float[Array, "b h"]):
+        """Returns `(frames (b, t_his + t_pred, d), log_sigma (b, t_his + t_pred, d // 3))` from X and a future code."""
+        fused = self.fusion(jnp.concatenate([self.encode_x(x), z_y], axis=-1))
+        frames = self.decoder(fused, x[:, 0])
+        ls = self.uncertainty_out(self.uncertainty(lax.stop_gradient(fused)))
+        return frames, ls.reshape(x.shape[0], self.t_his + self.t_pred, self.dim // 3)
+
+    def __call__(self, x: Float[Array, "b t_his d"], y: Float[Array, "b t_pred d"]):
+        return self.decode(x, self.encode_y(y))
+
+
+class HeatmapNet(nn.Module):
+    """Returns `(b, size, size)` logits of the map from the last `frames` observed frames (the release's HeatmapDecoder)."""
+
+    size: int
+    nh_rnn: int = 128
+    channels: int = 8
+    n_convs: int = 6
+    frames: int = 3
+
+    @nn.compact
+    def __call__(self, x: Float[Array, "b t d"]) -> Float[Array, "b size size"]:
+        h = GRU(self.nh_rnn, name="context")(x[:, -self.frames :])[:, -1]
+        h = nn.LayerNorm(name="norm")(nn.elu(h))
+        m = nn.elu(nn.Dense(self.size * self.size, name="to_map")(h)).reshape(-1, self.size, self.size, 1)
+        for i in range(self.n_convs):
+            m = nn.elu(nn.Conv(self.channels, (1, 1), name=f"conv_{i}")(m))
+        return nn.Conv(1, (1, 1), name="final")(m)[..., 0]
+
+
+def ae_model(c: MotionMapConfig, dim: int, t_his: int, t_pred: int) -> MotionMapAE:
+    """Returns the autoencoder a `MotionMapConfig` describes."""
+    return MotionMapAE(dim, t_his, t_pred, c.nh_rnn, c.nh_fuse, c.nh_uncertainty, c.n_uncertainty_layers)
+
+
+def heatmap_model(c: MotionMapConfig) -> HeatmapNet:
+    """Returns the heatmap network a `MotionMapConfig` describes."""
+    return HeatmapNet(c.hm_size, c.nh_rnn, c.hm_channels, c.hm_convs, c.descriptor_frames)
+
+
+def reconstruction_loss(
+    frames: Float[Array, "b t d"], log_sigma: Float[Array, "b t j"], target: Float[Array, "b t d"], scale: float
+):
+    """Returns `(loss, metrics)`: per-joint squared error (positions x `scale`) plus the NLL of the uncertainty head on its stopped value."""
+    b, t, d = frames.shape
+    err = jnp.sum(((frames - target) * scale).reshape(b, t, d // 3, 3) ** 2, axis=-1)
+    nll = heteroscedastic_nll(lax.stop_gradient(err), log_sigma)
+    rec = jnp.mean(err)
+    return rec + jnp.mean(nll), {"recon": rec, "nll": jnp.mean(nll), "sigma": jnp.mean(jnp.exp(log_sigma)) / scale}
+
+
+def ae_loss(model: MotionMapAE, params, batch, *, scale: float):
+    """Returns `(loss, metrics)` of stage 1: reconstruct `[X, Y_mm]` from X and `E_Y(Y_mm)`, plus the uncertainty NLL."""
+    frames, ls = model.apply(params, batch["x"], batch["y"])
+    return reconstruction_loss(frames, ls, jnp.concatenate([batch["x"], batch["y"]], axis=1), scale)
+
+
+def finetune_loss(model: MotionMapAE, params, table: Float[Array, "g c"], batch, *, scale: float):
+    """Returns `(loss, metrics)` of stage 4: reconstruct `[X, Y_mm]` from X and the codebook code of Y_mm's cell."""
+    z = table[batch["cell"]]
+    frames, ls = model.apply(params, batch["x"], z, method=MotionMapAE.decode)
+    return reconstruction_loss(frames, ls, jnp.concatenate([batch["x"], batch["y"]], axis=1), scale)
+
+
+def heatmap_loss(model: HeatmapNet, params, cells: Int[Array, "r 2"], batch, *, size: int, sigma: float, pos_weight: float):
+    """Returns `(loss, metrics)` of stage 2: weighted BCE of the logits against the Gaussian maps of the MM futures' cells."""
+    target = jax.vmap(lambda ix, mk: gaussian_heatmap(cells[ix].astype(jnp.float32), mk, size, sigma))(batch["members"], batch["mask"])
+    logits = model.apply(params, batch["x"])
+    loss = jnp.mean(weighted_bce(logits, target, pos_weight))
+    return loss, {"bce": loss, "peak_prob": jnp.mean(jnp.max(jax.nn.sigmoid(logits), axis=(1, 2)))}
+
+
+# --------------------------------------------------------------------------------------------
+# Inference.
+
+
+class Modes(NamedTuple):
+    """A variable number of modes per window, ranked by confidence; entries past `n` are padding."""
+
+    futures: Float[Array, "b p t d"]
+    confidence: Float[Array, "b p"]
+    sigma: Float[Array, "b p t j"]  # per-joint standard deviation (metres) of every future frame
+    cells: Int[Array, "b p 2"]
+    valid: Bool[Array, "b p"]
+    heatmap: Float[Array, "b h w"]
+
+
+def predict_modes(
+    ae: MotionMapAE, ae_params, hm: HeatmapNet, hm_params, codebook: dict, x: Float[Array, "b t_his d"],
+    parents: tuple[int, ...], *, min_distance: int, threshold_rel: float, max_peaks: int, scale: float,
+) -> Modes:
+    """Returns every window's modes: the peaks of its predicted map, each codebook code decoded with X."""
+    size = codebook["table"].shape[0]
+    desc = motion_transfer(x, codebook["template"], parents)
+    heat = jax.nn.sigmoid(hm.apply(hm_params, desc))
+    peaks = find_peaks(heat, min_distance=min_distance, threshold_rel=threshold_rel, max_peaks=max_peaks)
+    b, p = peaks.valid.shape
+    table = codebook["table"].reshape(size * size, -1)
+    z = table[peaks.cells[..., 0] * size + peaks.cells[..., 1]]  # (b, p, c)
+    xr = jnp.repeat(x, p, axis=0)
+    frames, ls = ae.apply(ae_params, xr, z.reshape(b * p, -1), method=MotionMapAE.decode)
+    t_his = x.shape[1]
+    futures = frames[:, t_his:].reshape(b, p, -1, x.shape[-1])
+    sigma = (jnp.exp(ls[:, t_his:]) / scale).reshape(b, p, -1, ls.shape[-1])
+    return Modes(futures, peaks.confidence, sigma, peaks.cells, peaks.valid, heat)
+
+
+def select_k(modes: Modes, k: int) -> Float[Array, "b k t d"]:
+    """Returns K futures per window: the top-K modes by confidence, repeated in confidence order when fewer (`top_k_slots`)."""
+    slots = top_k_slots(modes.valid, k)
+    return jnp.take_along_axis(modes.futures, slots[..., None, None], axis=1)
