@@ -114,6 +114,7 @@ def test_unknown_marker_set_or_missing_joint_is_a_clear_error():
         attach_markers(body, ("C7", "XYZ"))
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not CMU_01_01.is_file(), reason=f"{CMU_01_01} absent (../shared/data not mounted)")
 def test_skeleton_body_reproduces_bvh_forward_kinematics_on_cmu():
     from jaxmotion.formats.bvh import forward_kinematics, read_bvh
@@ -226,6 +227,7 @@ def test_canonical_frame_undoes_heading_and_position():
     assert m["C7"][2] > 0.3  # Z up, origin at the root
 
 
+@pytest.mark.slow
 def test_analytic_marker_jacobian_equals_autodiff():
     """`SkeletonBody.markers` has a hand-written JVP (what LM fits spend their time on): it must agree
     with plain autodiff for every parameter, the marker offsets and the skeleton, forward and reverse."""

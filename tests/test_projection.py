@@ -5,6 +5,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from jaxmotion.body.projection import body_fit_fn, project_k, recursive_projection
 from jaxmotion.body.skeleton import toy_skeleton
@@ -21,6 +22,7 @@ def valid_frame(seed: int, pose_std: float = 0.2):
     return p, BODY.markers(p).reshape(-1)
 
 
+@pytest.mark.slow
 def test_stand_in_decoder_feeds_back_the_fitted_frame_and_valid_bodies_are_fixed_points():
     init, y0 = valid_frame(0)
     k, t = 3, 4
@@ -44,6 +46,7 @@ def test_stand_in_decoder_feeds_back_the_fitted_frame_and_valid_bodies_are_fixed
     assert float(out.residual[1:].mean()) > 3e-3
 
 
+@pytest.mark.slow
 def test_mojo_decode_step_runs_inside_the_projection_scan_batched_over_k():
     from jaxmotion.models import mojo
 

@@ -27,6 +27,7 @@ from jaxtyping import Array, Float
 
 from jaxmotion.dct import dct, idct
 from jaxmotion.nn.gru import GRU, GRUCell, gru_update
+from jaxmotion.nn.linear import Dense
 from jaxmotion.nn.mlp import MLP
 
 LATENT_KINDS = ("vector", "dct")
@@ -72,6 +73,9 @@ class GRUCVAE(nn.Module):
     nh_mlp: tuple[int, ...] = (300, 200)
     latent: str = "vector"
     residual: bool = False
+    # Dense layers' initialisation: "torch" (the references' nn.Linear) or "flax" (nn.Dense). GRUs
+    # always follow PyTorch's rule (nn/gru.py).
+    dense_init: str = "flax"
 
     @property
     def latent_shape(self) -> tuple[int, ...]:
@@ -86,13 +90,14 @@ class GRUCVAE(nn.Module):
             raise ValueError(f"{type(self).__name__}.latent must be one of {LATENT_KINDS}, got {self.latent!r}")
         self.x_rnn = GRU(self.nh_rnn)
         self.e_rnn = GRU(self.nh_rnn)
-        self.e_mlp = MLP(self.nh_mlp)
-        self.e_mu = nn.Dense(self.nz)
-        self.e_logvar = nn.Dense(self.nz)
-        self.drnn_mlp = MLP(tuple(self.nh_mlp) + (self.nh_rnn,))
+        init = self.dense_init
+        self.e_mlp = MLP(self.nh_mlp, dense_init=init)
+        self.e_mu = Dense(self.nz, rule=init)
+        self.e_logvar = Dense(self.nz, rule=init)
+        self.drnn_mlp = MLP(tuple(self.nh_mlp) + (self.nh_rnn,), dense_init=init)
         self.d_cell = GRUCell(self.nh_rnn)
-        self.d_mlp = MLP(self.nh_mlp)
-        self.d_out = nn.Dense(self.dim)
+        self.d_mlp = MLP(self.nh_mlp, dense_init=init)
+        self.d_out = Dense(self.dim, rule=init)
 
     def encode_x(self, x: Float[Array, "b t_his d"]) -> Float[Array, "b h"]:
         """Returns the last hidden state of the past encoder GRU."""

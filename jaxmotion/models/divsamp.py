@@ -40,6 +40,7 @@ from jaxmotion.gumbel import COEFFICIENT_KINDS, sample_coefficients
 from jaxmotion.losses import dlow_diversity, hinge_diversity, kld_normal
 from jaxmotion.models.cvae import reparameterise, vmap_k
 from jaxmotion.nn.gcn import GCLStack, GraphConv
+from jaxmotion.nn.linear import DENSE_INITS, Dense
 
 PI_KINDS = ("uniform", "learned_shared", "learned_per_sample")
 DIVERSITY_KINDS = ("hinge", "exp")
@@ -80,6 +81,10 @@ class DivSampConfig:
     coefficients: str = "gumbel"  # "gumbel" | "uniform" | "gaussian" (ablation, Table 5)
     pi: str = "uniform"  # "uniform" (1/M) | "learned_shared" | "learned_per_sample"
     tau: float = 1.0  # the paper's temperature; the released configs use 0.85
+    # Dense layers' initialisation (encoder heads, bases, N_gamma): "torch" is the release's
+    # nn.Linear; "flax" (nn.Dense) is what the measured tables were trained with (issue 11: "torch"
+    # becomes the default once they are re-measured). The graph convolutions follow the release always.
+    dense_init: str = "flax"
     # Sampler training (release: lr 1e-3, batch 16, K 50, 1500 epochs of which 100 at constant lr).
     nk: int = 50  # K while training; any K can be drawn afterwards
     lr: float = 1e-3
@@ -97,7 +102,7 @@ class DivSampConfig:
 def check_config(c: DivSampConfig) -> DivSampConfig:
     """Returns `c` after checking its choices, raising a ValueError that names the bad field."""
     if not isinstance(c, DivSampConfig):
-        raise TypeError(f"Config.divsamp must be a jaxmotion.models.divsamp.DivSampConfig, got {type(c).__name__}")
+        raise TypeError(f"Config.method_config must be a jaxmotion.models.divsamp.DivSampConfig, got {type(c).__name__}")
     if c.coefficients not in COEFFICIENT_KINDS:
         raise ValueError(f"DivSampConfig.coefficients must be one of {COEFFICIENT_KINDS}, got {c.coefficients!r}")
     if c.pi not in PI_KINDS:
@@ -113,6 +118,8 @@ def check_config(c: DivSampConfig) -> DivSampConfig:
         raise ValueError(f"DivSampConfig.nk must be >= 2 (the diversity loss needs pairs), got {c.nk}")
     if c.tau <= 0:
         raise ValueError(f"DivSampConfig.tau must be > 0, got {c.tau}")
+    if c.dense_init not in DENSE_INITS:
+        raise ValueError(f"DivSampConfig.dense_init must be one of {DENSE_INITS}, got {c.dense_init!r}")
     return c
 
 
@@ -165,11 +172,12 @@ class DivSampCVAE(nn.Module):
     hidden: int = 256
     nz: int = 64
     num_residual: int = 4
+    dense_init: str = "flax"
 
     def setup(self):
         self.enc = GCLStack(self.hidden, self.num_residual)
-        self.e_mu = nn.Dense(self.nz)
-        self.e_logvar = nn.Dense(self.nz)
+        self.e_mu = Dense(self.nz, rule=self.dense_init)
+        self.e_logvar = Dense(self.nz, rule=self.dense_init)
         self.dec = GCLStack(self.hidden, self.num_residual)
         self.d_out = GraphConv(3 * self.n_dct)
 
@@ -196,14 +204,15 @@ class GammaHead(nn.Module):
 
     nh: int
     out: int
+    dense_init: str = "flax"
 
     @nn.compact
     def __call__(self, p: Float[Array, "... n"], *, train: bool) -> Float[Array, "... o"]:
-        h = nn.Dense(self.nh, name="dense_0")(p)
+        h = Dense(self.nh, rule=self.dense_init, name="dense_0")(p)
         # Statistics over all leading axes, i.e. over the b * K points, like the release's
         # BatchNorm1d on the (b * nk, n_b) matrix.
         h = nn.BatchNorm(use_running_average=not train, momentum=0.9, epsilon=1e-5, name="bn")(h)
-        return nn.Dense(self.out, name="dense_1")(jnp.tanh(h))
+        return Dense(self.out, rule=self.dense_init, name="dense_1")(jnp.tanh(h))
 
 
 class DivSampSampler(nn.Module):
@@ -219,13 +228,14 @@ class DivSampSampler(nn.Module):
     coefficients: str = "gumbel"
     pi: str = "uniform"
     tau: float = 1.0
+    dense_init: str = "flax"
 
     @nn.compact
     def __call__(self, cx: Float[Array, "b j c"], key: jax.Array, k: int, *, train: bool):
         b = cx.shape[0]
         m = self.num_bases
         h = GCLStack(self.hidden, self.num_residual, name="condition_enc")(cx, train=train).reshape(b, -1)
-        base = nn.Dense(m * self.base_dim, name="bases")(h)
+        base = Dense(m * self.base_dim, rule=self.dense_init, name="bases")(h)
         base = nn.BatchNorm(use_running_average=not train, momentum=0.9, epsilon=1e-5, name="bases_bn")(base)
         if self.base_tanh:
             base = jnp.tanh(base)
@@ -245,20 +255,20 @@ class DivSampSampler(nn.Module):
             sample = lambda kk, lg: sample_coefficients(kk, k, m, kind=self.coefficients, tau=self.tau, logits=lg)
         w = jax.vmap(sample)(jax.random.split(k_w, b), logits)  # (b, K, M), rows on the simplex
         p = w @ base  # (b, K, n_b): K points of the auxiliary space (DivSamp Eq. (11))
-        mean = GammaHead(self.nh, self.nz, name="mean")(p, train=train)
-        logvar = GammaHead(self.nh, self.nz, name="logvar")(p, train=train)
+        mean = GammaHead(self.nh, self.nz, self.dense_init, name="mean")(p, train=train)
+        logvar = GammaHead(self.nh, self.nz, self.dense_init, name="logvar")(p, train=train)
         eps = jax.random.normal(k_eps, (b, 1, self.nz))
         return jnp.exp(0.5 * logvar) * eps + mean, mean, logvar  # DivSamp Eq. (12)
 
 
 def cvae_from_config(c: DivSampConfig) -> DivSampCVAE:
-    return DivSampCVAE(n_dct=c.n_dct, hidden=c.hidden, nz=c.nz, num_residual=c.cvae_residual)
+    return DivSampCVAE(n_dct=c.n_dct, hidden=c.hidden, nz=c.nz, num_residual=c.cvae_residual, dense_init=c.dense_init)
 
 
 def sampler_from_config(c: DivSampConfig) -> DivSampSampler:
     return DivSampSampler(
         nz=c.nz, hidden=c.hidden, num_residual=c.sampler_residual, num_bases=c.num_bases, base_dim=c.base_dim,
-        nh=c.nh, base_tanh=c.base_tanh, coefficients=c.coefficients, pi=c.pi, tau=c.tau,
+        nh=c.nh, base_tanh=c.base_tanh, coefficients=c.coefficients, pi=c.pi, tau=c.tau, dense_init=c.dense_init,
     )
 
 

@@ -20,6 +20,7 @@ from jaxtyping import Array, Float
 from jaxmotion.losses import dlow_diversity, kld_affine, kld_normal, min_of_k_sq_error
 from jaxmotion.models.cvae import GRUCVAE, cvae_objective, decode_k, sample_prior
 from jaxmotion.nn.gru import GRU
+from jaxmotion.nn.linear import Dense
 from jaxmotion.nn.mlp import MLP
 
 __all__ = ["CVAEConfig", "QConfig", "DLowConfig", "DLowCVAE", "DLowQ", "decode_k", "sample_prior", "sample_dlow",
@@ -39,6 +40,10 @@ class CVAEConfig:
     lr_fix_fraction: float = 0.2  # DLow keeps lr constant for 100 of 500 epochs, then decays linearly to 0
     beta: float = 0.1
     lambda_v: float = 1000.0
+    # Dense layers' initialisation: "torch" is the release's (nn.Linear); "flax" (nn.Dense) is what
+    # every measured number in README.md and experiments/README.md was trained with (issue 11: the
+    # default becomes "torch" once those tables are re-measured with it).
+    dense_init: str = "flax"
 
 
 @dataclasses.dataclass
@@ -55,6 +60,7 @@ class QConfig:
     lambda_j: float = 25.0
     lambda_recon: float = 2.0
     lambda_kl: float = 1.0
+    dense_init: str = "flax"  # as CVAEConfig.dense_init
 
 
 def _synthetic_cvae() -> CVAEConfig:
@@ -92,7 +98,7 @@ class DLowCVAE(GRUCVAE):
 
 def cvae_model(c: CVAEConfig, dim: int, horizon: int) -> DLowCVAE:
     """Returns the CVAE module a `CVAEConfig` describes."""
-    return DLowCVAE(dim=dim, horizon=horizon, nz=c.nz, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp))
+    return DLowCVAE(dim=dim, horizon=horizon, nz=c.nz, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp), dense_init=c.dense_init)
 
 
 class QTrunk(nn.Module):
@@ -107,15 +113,16 @@ class QTrunk(nn.Module):
     n_heads: int = 1
     nh_rnn: int = 128
     nh_mlp: tuple[int, ...] = (1024, 512)
+    dense_init: str = "flax"  # "torch" (the releases' nn.Linear) or "flax" (nn.Dense)
 
     @nn.compact
     def __call__(self, x: Float[Array, "b t_his d"]):
         h = GRU(self.nh_rnn, name="x_rnn")(x)[:, -1]
-        h = MLP(self.nh_mlp, name="mlp")(h)
+        h = MLP(self.nh_mlp, dense_init=self.dense_init, name="mlp")(h)
         # One Dense with n_heads * nk * nz outputs is exactly n_heads unshared linear heads.
         shape = (-1, self.n_heads, self.nk, self.nz)
-        a = nn.Dense(self.n_heads * self.nk * self.nz, name="head_A")(h).reshape(shape)
-        b = nn.Dense(self.n_heads * self.nk * self.nz, name="head_b")(h).reshape(shape)
+        a = Dense(self.n_heads * self.nk * self.nz, rule=self.dense_init, name="head_A")(h).reshape(shape)
+        b = Dense(self.n_heads * self.nk * self.nz, rule=self.dense_init, name="head_b")(h).reshape(shape)
         return a, b
 
 
@@ -133,7 +140,7 @@ class DLowQ(QTrunk):
 
 def q_model(c: QConfig, nz: int, nk: int) -> DLowQ:
     """Returns the Q network of a `QConfig` for `nk` samples of an `nz`-dimensional latent."""
-    return DLowQ(nz=nz, nk=nk, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp))
+    return DLowQ(nz=nz, nk=nk, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp), dense_init=c.dense_init)
 
 
 def sample_dlow(cvae: DLowCVAE, cvae_params, q: DLowQ, q_params, x, key: jax.Array) -> Float[Array, "b nk t_pred d"]:

@@ -178,7 +178,7 @@ def motionmap_mm_sets(
         pad = c - q.shape[0]
         if pad:
             q = np.concatenate([q, np.repeat(q[-1:], pad, axis=0)])
-        near = np.asarray(near_fn(jnp.asarray(q), ref_j, thr_j))[: c - pad]
+        near = np.array(near_fn(jnp.asarray(q), ref_j, thr_j))[: c - pad]
         if reference_desc is None:
             k = np.arange(near.shape[0])
             near[k, s + k] = True

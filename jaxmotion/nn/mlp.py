@@ -7,16 +7,19 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from jaxmotion.nn.linear import Dense
+
 
 class MLP(nn.Module):
     """Returns `act(Dense(...act(Dense(x))))`: DLow's MLP (tanh after every layer)."""
 
     features: tuple[int, ...]
     activation: str = "tanh"  # any jax.nn name, or "tanh"
+    dense_init: str = "flax"  # "torch" (PyTorch nn.Linear) or "flax" (nn.Dense); see nn/linear.py
 
     @nn.compact
     def __call__(self, x: Float[Array, "... i"]) -> Float[Array, "... o"]:
         act = getattr(jax.nn, self.activation) if self.activation != "tanh" else jnp.tanh
         for i, f in enumerate(self.features):
-            x = act(nn.Dense(f, name=f"dense_{i}")(x))
+            x = act(Dense(f, rule=self.dense_init, name=f"dense_{i}")(x))
         return x
