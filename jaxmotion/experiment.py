@@ -170,7 +170,11 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
                         extras.append(extra_fn(ds, p, y[i * cfg.eval_batch : i * cfg.eval_batch + p.shape[0]]))
                     yield p
 
-            m = metrics.evaluate_windows(chunks(), y, mm_sets, reference_futures=ref_futures, mm_deviation=cfg.mm_deviation)
+            # DivSamp's deviation drops exact-duplicate last poses, so it builds its sets from the poses.
+            mm = (x[:, -1], ds.mm_threshold) if cfg.mm_deviation == "divsamp" else (mm_sets, None)
+            m = metrics.evaluate_windows(
+                chunks(), y, mm[0], thr=mm[1], reference_futures=ref_futures, mm_deviation=cfg.mm_deviation
+            )
             m.pop("n_windows")  # a top-level field of the record (PROTOCOL sec. 5)
             if modes is not None:
                 sel = modes.boundary <= cfg.mode_max_boundary

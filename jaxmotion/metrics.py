@@ -329,8 +329,8 @@ def reduce_mm(
     `per_window` must have been computed on the sets the deviation prescribes, `n_members` is the
     size of those sets and `n_others` the number of members other than the window itself.
     - `None` (protocol): mean over windows with a non-empty set (all of them when MM(i) includes i).
-    - `"divsamp"`: sets exclude i; windows with no neighbour are skipped, but the sum is divided
-      by the full window count (DivSamp's published code).
+    - `"divsamp"`: windows with no neighbour (`n_others == 0`) are skipped, but the sum is divided
+      by the full window count (DivSamp's published code; `evaluate_windows` builds its sets).
     - `"comusion"`: windows whose only member is themselves are dropped (CoMusion's published code).
     """
     v = np.asarray(per_window, np.float64)
@@ -339,7 +339,7 @@ def reduce_mm(
         keep = n_members > 0
         return float(v[keep].mean()) if keep.any() else float("nan"), int(keep.sum())
     if mm_deviation == "divsamp":
-        keep = n_members > 0
+        keep = n_others > 0
         return float(v[keep].sum() / v.shape[0]), int(keep.sum())
     if mm_deviation == "comusion":
         keep = n_others > 0
@@ -453,8 +453,11 @@ def evaluate_windows(
     e.g. training windows for MotionMap comparisons. `pred` may be an iterable of window chunks;
     see `window_metrics`.
 
-    `mm_deviation` reproduces published code (see `reduce_mm`); with `"divsamp"` a window's own
-    future is removed from its set before MMADE/MMFDE are computed. Non-MM metrics are unaffected.
+    `mm_deviation` reproduces published code (see `reduce_mm`). `"comusion"` drops windows whose
+    only member is themselves from MMADE/MMFDE. `"divsamp"` is DivSamp's release (`mm` must be the
+    last poses): a window's set is itself plus the windows within `thr` whose last pose differs from
+    its own (exact duplicates are dropped), windows with no such neighbour are skipped in APD, ADE,
+    FDE, MMADE and MMFDE, and those sums are still divided by the number of windows.
 
     Extra keys: `n_windows`; `MM_mean`, `MM_min`, `MM_max` (MM set sizes as built, i.e. including
     the window itself in test-window mode); `MM_only_self_frac` (fraction of windows with no MM
@@ -462,6 +465,8 @@ def evaluate_windows(
     """
     fn = "evaluate_windows"
     gt = np.asarray(gt, np.float32)
+    if mm_deviation == "divsamp" and (isinstance(mm, MMSets) or reference_futures is not None):
+        raise ValueError(f"{fn}: mm_deviation='divsamp' needs `mm` as the test windows' last poses (it drops duplicates)")
     if isinstance(mm, MMSets):
         if reference_last_poses is not None:
             raise ValueError(f"{fn}: pass `reference_last_poses` only with last poses, not with `MMSets`")
@@ -487,10 +492,18 @@ def evaluate_windows(
         is_self = np.zeros(mask.shape, bool)
     n_members = mask.sum(axis=1)
     n_others = (mask & ~is_self).sum(axis=1)
-    used = mask & ~is_self if mm_deviation == "divsamp" else mask
+    used = mask
+    if mm_deviation == "divsamp":
+        poses = np.asarray(mm, np.float64)
+        dup = np.all(poses[np.asarray(sets.idx)] == poses[:, None], axis=-1) & ~is_self
+        used = mask & ~dup
+        n_others = (used & ~is_self).sum(axis=1)
 
     per = window_metrics(pred, gt, futures, sets.idx, used, chunk_size=chunk_size)
     out = {k: float(np.mean(per[k], dtype=np.float64)) for k in METRIC_NAMES if not k.startswith("MM")}
+    if mm_deviation == "divsamp":
+        keep = n_others > 0
+        out.update({k: float(np.sum(per[k][keep], dtype=np.float64) / gt.shape[0]) for k in ("APD", "ADE", "FDE")})
     out["MMADE"], n_avg = reduce_mm(per["MMADE"], used.sum(axis=1), n_others, mm_deviation)
     out["MMFDE"], _ = reduce_mm(per["MMFDE"], used.sum(axis=1), n_others, mm_deviation)
     out.update(

@@ -24,9 +24,7 @@ def _data():
 
 def _prior(dim=48, seed=0):
     prior = gsps.PosePrior(dim=dim, n_layers=3)
-    params = prior.init(jax.random.key(seed), jnp.zeros((1, dim)))
-    # Push the PReLU slopes away from their init so both branches matter.
-    return prior, params
+    return prior, prior.init(jax.random.key(seed), jnp.zeros((1, dim)))
 
 
 def test_prior_inverse_inverts():
@@ -75,7 +73,7 @@ def _knee_flexion(frames: np.ndarray) -> np.ndarray:
     pos = np.concatenate([np.zeros_like(frames[:, :3]), frames], axis=1).reshape(len(frames), -1, 3)
     t = pos[:, ROLES["l_knee"]] - pos[:, ROLES["l_hip"]]
     s = pos[:, ROLES["l_foot"]] - pos[:, ROLES["l_knee"]]
-    return np.arccos(np.sum(t * s, -1) / np.linalg.norm(t, axis=-1) / np.linalg.norm(s, axis=-1))
+    return np.arccos(np.clip(np.sum(t * s, -1) / np.linalg.norm(t, axis=-1) / np.linalg.norm(s, axis=-1), -1, 1))
 
 
 def test_trained_prior_prefers_real_poses_to_knees_bent_backwards():
@@ -102,3 +100,132 @@ def test_trained_prior_prefers_real_poses_to_knees_bent_backwards():
     # Lower NLL = higher density on held-out subjects' real poses, for nearly every pose.
     assert float(jnp.mean(real < broken)) > 0.95
     assert float(jnp.median(broken - real)) > 10.0
+
+
+# ----------------------------------------------------------------------------------------------
+# Angle limits.
+
+
+def test_angle_roles_from_names_of_every_skeleton():
+    from jaxmotion.data.datasets import HUMANEVA_JOINT_NAMES, HUMANEVA_PARENTS
+
+    bandai = ("Hips", "Spine", "Chest", "Neck", "Head", "Shoulder_L", "UpperArm_L", "LowerArm_L", "Hand_L", "Shoulder_R",
+              "UpperArm_R", "LowerArm_R", "Hand_R", "UpperLeg_L", "LowerLeg_L", "Foot_L", "Toes_L", "UpperLeg_R",
+              "LowerLeg_R", "Foot_R", "Toes_R")
+    bandai_parents = (-1, 0, 1, 2, 3, 2, 5, 6, 7, 2, 9, 10, 11, 0, 13, 14, 15, 0, 17, 18, 19)
+    r = gsps.angle_roles(bandai, bandai_parents)
+    assert (r["l_knee"], r["r_shoulder"], r["thorax"], r["l_wrist"]) == (14, 10, 2, 8)
+    r = gsps.angle_roles(HUMANEVA_JOINT_NAMES, HUMANEVA_PARENTS)
+    assert (r["l_knee"], r["r_foot"], r["thorax"], r["head"]) == (9, 13, 1, 14)
+    # The release's HumanEva-I parts (`humaneva.yml`): legs [7..12], then the rest.
+    assert gsps.body_parts(HUMANEVA_JOINT_NAMES, HUMANEVA_PARENTS, "lower_upper") == ((7, 8, 9, 10, 11, 12), (0, 1, 2, 3, 4, 5, 6, 13))
+    # ... and Human3.6M's (`h36m.yml`), whose 17-joint layout the synthetic skeleton shares.
+    assert gsps.body_parts(SKELETON.names, PARENTS, "lower_upper") == (tuple(range(6)), tuple(range(6, 16)))
+    with pytest.raises(ValueError, match="l_knee"):
+        gsps.angle_roles(("Hips", "Head"), (-1, 0))
+
+
+def test_measured_bounds_hold_real_poses_and_reject_backward_knees():
+    train, test = _data()
+    bounds = gsps.measure_angle_bounds(train[::5], ROLES, 0.1)
+    assert bounds.shape == (len(gsps.ANGLE_NAMES), 2) and np.all(bounds[:, 0] <= bounds[:, 1])
+    frac_real = float(gsps.violation_fraction(jnp.asarray(test)[None], ROLES, jnp.asarray(bounds))[0])
+    assert frac_real < 0.03
+    bent = test[_knee_flexion(test) > np.deg2rad(20)]
+    cos = gsps.angle_cosines(jnp.asarray(_bend_knee_backwards(bent)), ROLES)
+    viol = gsps.angle_violations(cos, jnp.asarray(bounds))
+    knee = gsps.ANGLE_NAMES.index("Leg2HipPlane_l")
+    assert float(jnp.mean(viol[:, knee] > 0)) > 0.95
+    assert float(gsps.angle_loss(cos, jnp.asarray(bounds))) > 0.0
+    assert float(gsps.angle_loss(gsps.angle_cosines(jnp.asarray(bent), ROLES), jnp.asarray(bounds))) < 1e-3
+
+
+def test_angle_loss_is_mean_squared_violation_per_family_and_ignores_open_bounds():
+    a = len(gsps.ANGLE_NAMES)
+    bounds = np.tile(np.array([[-0.5, 0.5]], np.float32), (a, 1))
+    bounds[1] = [-0.99, 0.99]  # Spine2Hip_r: both bounds open (|bound| > 0.98), never penalised
+    cos = np.zeros((3, a), np.float32)
+    cos[0, 0], cos[1, 0] = 0.7, -0.9  # Spine2Hip_l leaves [lo, hi] by 0.2 and 0.4
+    cos[:, 1] = 1.0
+    cos[2, 2] = 0.6  # Leg2HipPlane_l by 0.1
+    got = float(gsps.angle_loss(jnp.asarray(cos), jnp.asarray(bounds)))
+    np.testing.assert_allclose(got, (0.2**2 + 0.4**2) / 2 + 0.1**2, rtol=1e-5)
+
+
+# ----------------------------------------------------------------------------------------------
+# Generator, objective, pseudo ground truth.
+
+PARTS = gsps.body_parts(SKELETON.names, PARENTS, "lower_upper")
+
+
+def _gen(parts=PARTS, hidden=16):
+    gen = gsps.GSPSGenerator(parts=parts, hidden=hidden, num_stage=1)
+    nodes = jnp.zeros((2, 16, 3 * 5))
+    v = gen.init(jax.random.key(0), nodes, jnp.zeros((2, len(parts), 8)), train=False)
+    return gen, v
+
+
+def test_later_parts_never_change_earlier_parts_so_the_lower_body_can_be_fixed():
+    train, _ = _data()
+    gen, v = _gen()
+    x = jnp.asarray(np.stack([train[0:15], train[300:315]]))
+    z = gsps.part_control_noise(jax.random.key(3), 2, 6, 2, 8, fixed=(0,))
+    seq, _ = gsps.generate(gen, v, x, z, t_pred=60, n_pre=5, train=False)
+    assert seq.shape == (2, 6, 75, 48)
+    lower, upper = gsps.part_coords(PARTS)
+    spread = lambda c: float(jnp.max(jnp.std(seq[..., c], axis=1)))  # noqa: E731
+    assert spread(lower) < 1e-6 < 1e-3 < spread(upper)
+    z = gsps.part_control_noise(jax.random.key(3), 2, 6, 2, 8, fixed=(1,))
+    seq, _ = gsps.generate(gen, v, x, z, t_pred=60, n_pre=5, train=False)
+    assert spread(lower) > 1e-3 and spread(upper) > 1e-3  # the upper body sees the varying lower body
+
+
+def test_five_part_split_predicts_every_joint_once():
+    parts = gsps.body_parts(SKELETON.names, PARENTS, "five")
+    assert sorted(j for p in parts for j in p) == list(range(16))
+    gen, v = _gen(parts)
+    out = gen.apply(v, jnp.ones((2, 16, 15)), jnp.ones((2, 5, 8)), train=False)
+    assert out.shape == (2, 16, 15) and bool(jnp.all(jnp.isfinite(out)))
+
+
+def test_training_noise_grid_shares_first_part_noise_across_nk2():
+    z = gsps.training_noise(jax.random.key(0), 2, 2, 3, 4, 8).reshape(2, 3, 4, 2, 8)
+    np.testing.assert_array_equal(z[:, :, 0, 0], z[:, :, 3, 0])
+    assert float(jnp.min(jnp.abs(z[:, 0, :, 0] - z[:, 1, :, 0]))) > 0
+    assert float(jnp.min(jnp.abs(z[:, :, 0, 1] - z[:, :, 1, 1]))) > 0
+
+
+def test_pseudo_futures_follow_the_release_thresholds():
+    train, _ = _data()
+    pool = gsps.candidate_pool([train[:3000]], 15, 60, 15)
+    w = pool[[10, 50]]
+    fut, mask = gsps.pseudo_futures(w, pool, np.random.default_rng(0), t_his=15, his_threshold=0.05, pred_threshold=0.1, num=10)
+    assert fut.shape == (2, 10, 60, 48) and mask.any()
+    j = 16
+    for i in range(2):
+        for f in fut[i][mask[i]]:
+            cand = [c for c in pool if np.array_equal(c[15:], f)][0]
+            assert np.linalg.norm((cand[14] - w[i, 14]).reshape(j, 3), axis=-1).mean() <= 0.05
+            assert np.linalg.norm((f - w[i, 15:]).reshape(60, j, 3), axis=-1).mean() >= 0.1
+        assert not fut[i][~mask[i]].any()
+
+
+def test_generator_loss_is_finite_and_differentiable():
+    train, _ = _data()
+    gen, v = _gen()
+    prior, pp = _prior()
+    pool = gsps.candidate_pool([train[:3000]], 15, 60, 15)
+    w = pool[[3, 40]]
+    mm, mask = gsps.pseudo_futures(w, pool, np.random.default_rng(0), t_his=15, his_threshold=0.05, pred_threshold=0.1, num=4)
+    bounds = jnp.asarray(gsps.measure_angle_bounds(train[::10], ROLES, 0.1))
+    loss_fn = functools.partial(
+        gsps.generator_loss, gen, prior=prior, prior_params=pp, t_his=15, parents=PARENTS, parts=PARTS, roles=ROLES,
+        angle_bounds=bounds, n_pre=5, nz=8, nk1=3, nk2=2, lambda_his=100.0, lambda_limb=500.0, lambda_div_first=8.0,
+        lambda_div_rest=25.0, alpha=100.0, beta=300.0, lambda_recon=2.0, lambda_recon_mm=1.0, lambda_prior=0.01,
+        prior_stride=3, lambda_angle=100.0,
+    )
+    batch = {"window": jnp.asarray(w), "mm": jnp.asarray(mm), "mm_mask": jnp.asarray(mask, jnp.float32)}
+    (loss, (m, stats)), g = jax.value_and_grad(loss_fn, has_aux=True)(v, batch=batch, key=jax.random.key(0))
+    assert np.isfinite(float(loss)) and all(np.isfinite(float(x)) for x in m.values())
+    assert all(bool(jnp.all(jnp.isfinite(x))) for x in jax.tree.leaves(g["params"]))
+    assert 0 < float(m["div_first"]) <= 1 and 0 < float(m["div_rest"]) <= 1

@@ -40,8 +40,9 @@ PROPS = settings(max_examples=10, deadline=None)
 #   MMADE = MMFDE = 0.
 # Averages (protocol): APD 25/3, ADE 2.5/3, FDE 5/3, ADE-m 8.75/3, FDE-m 15/3,
 #   MMADE (3.75+1.25+0)/3 = 5/3, MMFDE (5+0+0)/3 = 5/3.
-# DivSamp: MM'(0) = {1} -> 5, 5; MM'(1) = {0} -> 2.5, 0; MM'(2) empty, skipped; divide by 3:
-#   MMADE (5+2.5)/3 = 2.5, MMFDE (5+0)/3 = 5/3.
+# DivSamp's release: MM'(i) = MM(i) (no duplicate last poses here); window 2 has no neighbour, so
+#   it is skipped in all five metrics and the sums are divided by 3: APD 20/3, ADE 2.5/3, FDE 5/3,
+#   MMADE (3.75+1.25)/3 = 5/3, MMFDE (5+0)/3 = 5/3.
 # CoMusion: window 2 (only itself) dropped: MMADE (3.75+1.25)/2 = 2.5, MMFDE (5+0)/2 = 2.5.
 
 LAST = np.array([[0, 0], [3, 4], [100, 0]], np.float32)
@@ -71,11 +72,13 @@ def test_hand_computed_per_window():
 
 @pytest.mark.parametrize(
     "deviation, mmade, mmfde, n_avg",
-    [(None, 5 / 3, 5 / 3, 3), ("divsamp", 2.5, 5 / 3, 2), ("comusion", 2.5, 2.5, 2)],
+    [(None, 5 / 3, 5 / 3, 3), ("divsamp", 5 / 3, 5 / 3, 2), ("comusion", 2.5, 2.5, 2)],
 )
 def test_hand_computed_aggregates(deviation, mmade, mmfde, n_avg):
     out = M.evaluate_windows(PRED, GT, LAST, thr=THR, mm_deviation=deviation, chunk_size=2)
     expected = {"APD": 25 / 3, "ADE": 2.5 / 3, "FDE": 5 / 3, "ADE-m": 8.75 / 3, "FDE-m": 5.0}
+    if deviation == "divsamp":
+        expected["APD"] = 20 / 3  # window 2, with no neighbour, is skipped and the sum divided by 3
     expected.update(MMADE=mmade, MMFDE=mmfde, MM_n_averaged=n_avg, n_windows=3)
     expected.update(MM_mean=5 / 3, MM_min=1, MM_max=2, MM_only_self_frac=1 / 3)
     for key, value in expected.items():
@@ -213,9 +216,9 @@ def _reference(pred, gt, last, thr, deviation=None):
         adem.append(np.median(dist.mean(1)))
         fdem.append(np.median(dist[:, -1]))
         members = [j for j in range(n) if np.linalg.norm(last[i] - last[j]) < thr]
+        if deviation == "divsamp":  # the release: itself, plus neighbours whose last pose differs from its own
+            members = [i] + [j for j in members if j != i and np.any(last[j] != last[i])]
         others.append(len(members) - 1)
-        if deviation == "divsamp":
-            members = [j for j in members if j != i]
         a = [np.linalg.norm(pred[i] - gt[j], axis=-1).mean(1).min() for j in members]
         f = [np.linalg.norm(pred[i, :, -1] - gt[j, -1], axis=-1).min() for j in members]
         mmade.append(np.mean(a) if members else np.nan)
@@ -226,7 +229,9 @@ def _reference(pred, gt, last, thr, deviation=None):
     if deviation is None:
         out.update(MMADE=mmade.mean(), MMFDE=mmfde.mean())
     elif deviation == "divsamp":
-        out.update(MMADE=np.nansum(mmade) / n, MMFDE=np.nansum(mmfde) / n)
+        keep = others > 0
+        out.update({key: np.sum(np.array(v)[keep]) / n for key, v in (("APD", apd), ("ADE", ade), ("FDE", fde))})
+        out.update(MMADE=np.sum(mmade[keep]) / n, MMFDE=np.sum(mmfde[keep]) / n)
     else:
         keep = others > 0
         out.update(MMADE=mmade[keep].mean(), MMFDE=mmfde[keep].mean())
@@ -335,3 +340,22 @@ def test_validation_names_the_argument():
         M.evaluate_windows(PRED, GT, LAST, thr=THR, mm_deviation="dlow")
     with pytest.raises(TypeCheckError, match="parameter 'pred'"):
         M.apd(np.zeros((3, 2, 2), int))
+
+
+def test_divsamp_deviation_drops_duplicate_last_poses_and_differs_from_the_protocol():
+    # Windows 0 and 3 have the same last pose, 1 is near them, 2 is alone (thr 0.5).
+    last = np.array([[0.0, 0.0], [0.1, 0.0], [5.0, 0.0], [0.0, 0.0]], np.float32)
+    gt = np.array([[[0, 0]], [[1, 0]], [[9, 9]], [[0, 3]]], np.float32)  # one future frame each
+    pred = np.array([[[[0, 0]]], [[[1, 0]]], [[[9, 9]]], [[[0, 3]]]], np.float32)  # K = 1, exact
+    proto = M.evaluate_windows(pred, gt, last, thr=0.5)
+    rel = M.evaluate_windows(pred, gt, last, thr=0.5, mm_deviation="divsamp")
+    d = lambda i, j: float(np.linalg.norm(gt[i, 0] - gt[j, 0]))  # noqa: E731
+    # Protocol: MM(0) = MM(1) = MM(3) = {0, 1, 3}, MM(2) = {2}; averaged over 4 windows.
+    want = (np.mean([d(0, 0), d(0, 1), d(0, 3)]) + np.mean([d(1, 0), d(1, 1), d(1, 3)]) + 0 + np.mean([d(3, 0), d(3, 1), d(3, 3)])) / 4
+    assert proto["MMADE"] == pytest.approx(want, rel=1e-6) and proto["ADE"] == 0
+    # Release: MM'(0) = {0, 1} (3 is a duplicate), MM'(1) = {1, 0, 3}, MM'(3) = {3, 1}; 2 skipped; / 4.
+    want = (np.mean([d(0, 0), d(0, 1)]) + np.mean([d(1, 1), d(1, 0), d(1, 3)]) + np.mean([d(3, 3), d(3, 1)])) / 4
+    assert rel["MMADE"] == pytest.approx(want, rel=1e-6) and rel["MM_n_averaged"] == 3
+    assert rel["MMADE"] != pytest.approx(proto["MMADE"], rel=1e-3)
+    with pytest.raises(ValueError, match="divsamp.*last poses"):
+        M.evaluate_windows(pred, gt, M.multimodal_gt(last, 0.5), mm_deviation="divsamp")

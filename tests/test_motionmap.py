@@ -49,8 +49,11 @@ def test_motionmap_mm_sets_match_brute_force_and_include_self():
         d = np.linalg.norm((moved - desc[i]).reshape(len(desc), -1), axis=-1)
         want = set(np.nonzero(d < thr)[0]) | {i}
         assert set(idx[i, mask[i]]) == want
-    # Transfer makes a rescaled copy of a pose a neighbour, where plain distance would not.
-    ref = desc * 1.2
+    # Transfer makes a rescaled copy of a motion a neighbour, where plain distance would not
+    # (each descriptor made one skeleton over its frames first, as real motion is).
+    one = np.asarray(mm.motion_transfer(jnp.asarray(desc), jnp.asarray(desc[:, -1:]), PARENTS))
+    ref = one * 1.2
+    desc = one
     r = mm.motionmap_mm_sets(desc[:3], thr, PARENTS, reference_desc=ref)
     assert all(i in set(np.asarray(r.idx)[i, np.asarray(r.mask)[i]]) for i in range(3))
 

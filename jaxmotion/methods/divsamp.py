@@ -91,7 +91,9 @@ def make_predictors(d: DivSampConfig, ds, cvae_variables, sampler_variables, k: 
         "zero_velocity": zero_velocity(t_pred, k),
         "divsamp_cvae": jax.jit(lambda x, key: divsamp.sample_prior(cvae, cvae_variables, x, key, k, t_pred=t_pred)),
         "divsamp": jax.jit(
-            lambda x, key: divsamp.sample_divsamp(cvae, cvae_variables, sampler, sampler_variables, x, key, k, t_pred=t_pred)
+            lambda x, key: divsamp.sample_divsamp(
+                cvae, cvae_variables, sampler, sampler_variables, x, key, k, t_pred=t_pred, test_eps=d.test_eps
+            )
         ),
     }
 

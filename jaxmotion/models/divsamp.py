@@ -44,6 +44,7 @@ from jaxmotion.nn.linear import DENSE_INITS, Dense
 
 PI_KINDS = ("uniform", "learned_shared", "learned_per_sample")
 DIVERSITY_KINDS = ("hinge", "exp")
+TEST_EPS_KINDS = ("shared", "independent")
 
 
 @dataclasses.dataclass
@@ -85,6 +86,10 @@ class DivSampConfig:
     # nn.Linear; "flax" (nn.Dense) is what the measured tables were trained with (issue 11: "torch"
     # becomes the default once they are re-measured). The graph convolutions follow the release always.
     dense_init: str = "flax"
+    # Test-time noise: "shared" (one eps per window for its K latents, as in training) or
+    # "independent" (K draws: the release's evaluation). "shared" is what the measured tables used;
+    # issue 11 makes "independent" the default once they are re-measured.
+    test_eps: str = "shared"
     # Sampler training (release: lr 1e-3, batch 16, K 50, 1500 epochs of which 100 at constant lr).
     nk: int = 50  # K while training; any K can be drawn afterwards
     lr: float = 1e-3
@@ -118,6 +123,8 @@ def check_config(c: DivSampConfig) -> DivSampConfig:
         raise ValueError(f"DivSampConfig.nk must be >= 2 (the diversity loss needs pairs), got {c.nk}")
     if c.tau <= 0:
         raise ValueError(f"DivSampConfig.tau must be > 0, got {c.tau}")
+    if c.test_eps not in TEST_EPS_KINDS:
+        raise ValueError(f"DivSampConfig.test_eps must be one of {TEST_EPS_KINDS}, got {c.test_eps!r}")
     if c.dense_init not in DENSE_INITS:
         raise ValueError(f"DivSampConfig.dense_init must be one of {DENSE_INITS}, got {c.dense_init!r}")
     return c
@@ -231,7 +238,9 @@ class DivSampSampler(nn.Module):
     dense_init: str = "flax"
 
     @nn.compact
-    def __call__(self, cx: Float[Array, "b j c"], key: jax.Array, k: int, *, train: bool):
+    def __call__(self, cx: Float[Array, "b j c"], key: jax.Array, k: int, *, train: bool, shared_eps: bool = True):
+        """Returns `(z, mean, logvar)`; `eps` is one draw per window shared by its K latents (training, the release),
+        or K independent draws with `shared_eps=False` (the release at test time)."""
         b = cx.shape[0]
         m = self.num_bases
         h = GCLStack(self.hidden, self.num_residual, name="condition_enc")(cx, train=train).reshape(b, -1)
@@ -257,7 +266,7 @@ class DivSampSampler(nn.Module):
         p = w @ base  # (b, K, n_b): K points of the auxiliary space (DivSamp Eq. (11))
         mean = GammaHead(self.nh, self.nz, self.dense_init, name="mean")(p, train=train)
         logvar = GammaHead(self.nh, self.nz, self.dense_init, name="logvar")(p, train=train)
-        eps = jax.random.normal(k_eps, (b, 1, self.nz))
+        eps = jax.random.normal(k_eps, (b, 1 if shared_eps else k, self.nz))
         return jnp.exp(0.5 * logvar) * eps + mean, mean, logvar  # DivSamp Eq. (12)
 
 
@@ -295,11 +304,17 @@ def sample_prior(cvae: DivSampCVAE, variables, x: Float[Array, "b t_his d"], key
 
 def sample_divsamp(
     cvae: DivSampCVAE, cvae_variables, sampler: DivSampSampler, sampler_variables, x: Float[Array, "b t_his d"], key, k: int,
-    *, t_pred: int,
+    *, t_pred: int, test_eps: str = "shared",
 ):
-    """Returns DivSamp's K futures `(b, K, t_pred, D)` (Alg. 2): K auxiliary points -> K Gaussians -> K latents -> decoder."""
+    """Returns DivSamp's K futures `(b, K, t_pred, D)` (Alg. 2): K auxiliary points -> K Gaussians -> K latents -> decoder.
+
+    `test_eps`: "shared" (one eps per window for its K latents, as in training) or "independent"
+    (K draws, what the release's evaluation does).
+    """
+    if test_eps not in TEST_EPS_KINDS:
+        raise ValueError(f"sample_divsamp: test_eps must be one of {TEST_EPS_KINDS}, got {test_eps!r}")
     cx = condition_nodes(x, t_pred, cvae.n_dct)
-    z, _, _ = sampler.apply(sampler_variables, cx, key, k, train=False)
+    z, _, _ = sampler.apply(sampler_variables, cx, key, k, train=False, shared_eps=test_eps == "shared")
     return decode_k(cvae, cvae_variables, cx, z, t_his=x.shape[1], t_pred=t_pred)
 
 
