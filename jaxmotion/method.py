@@ -16,7 +16,8 @@ README "Adding a method" walks through DLow.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import jax
 import numpy as np
@@ -46,8 +47,8 @@ class Stage:
     name: str
     init: Callable[[jax.Array, dict], Any]
     optimizer: optax.GradientTransformation
-    loss: LossFn
-    batches: Callable[[np.random.Generator], Any]
+    loss: LossFn | None  # None only for a stage with nothing to train (num_steps=0)
+    batches: Callable[[np.random.Generator], Any] | None
     num_steps: int
     init_seed: int = 0
     data_seed: int = 0
@@ -59,6 +60,8 @@ class Stage:
             raise ValueError(f"Stage.name must be a non-empty folder name, got {self.name!r}")
         if self.num_steps < 0:
             raise ValueError(f"Stage {self.name!r}: num_steps must be >= 0, got {self.num_steps}")
+        if self.num_steps > 0 and (self.loss is None or self.batches is None):
+            raise ValueError(f"Stage {self.name!r}: a stage that trains ({self.num_steps} steps) needs a loss and batches")
 
 
 @dataclasses.dataclass(frozen=True)

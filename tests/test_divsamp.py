@@ -183,6 +183,7 @@ def get_config():
 """
 
 
+@pytest.mark.slow
 def test_cli_trains_both_stages_resumes_exactly_and_evaluates(tmp_path):
     cfg_half, cfg_full = tmp_path / "half.py", tmp_path / "full.py"
     cfg_half.write_text(TINY.replace("NSTEPS", "2"))

@@ -65,6 +65,7 @@ def test_projecting_a_valid_body_is_a_fixed_point():
     assert float(jnp.sum(fit.params.pose**2)) < float(jnp.sum(true.pose**2))
 
 
+@pytest.mark.slow
 def test_missing_markers_are_ignored_and_still_predicted():
     true = random_params(11)
     targets = BODY.markers(true)

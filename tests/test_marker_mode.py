@@ -50,6 +50,7 @@ def dataset(train, test) -> MotionDataset:
     )  # fmt: skip
 
 
+@pytest.mark.slow
 def test_canonical_windows_do_not_depend_on_where_and_which_way_the_motion_happens():
     a = dataset([seq(0, 30)], [seq(0, 30)])
     b = dataset([seq(0, 30, yaw=2.1, shift=(3.0, 0.0, -1.0))], [seq(0, 30, yaw=-0.7, shift=(-5.0, 0.0, 2.0))])
@@ -98,6 +99,7 @@ def test_marker_bone_deformation_is_zero_for_a_valid_body_and_the_override_makes
     assert float(realism.bone_deformation(jnp.asarray(stretched.reshape(1, 40, -1)), BODY.marker_names)[0]) > 0.01
 
 
+@pytest.mark.slow
 def test_mojo_with_recursive_projection_keeps_bones_rigid_and_matches_mojo_latents():
     from jaxmotion.config import Config
     from jaxmotion.models.mojo import MojoConfig

@@ -4,6 +4,7 @@ import json
 import shutil
 
 import numpy as np
+import optax
 import pytest
 
 from jaxmotion import experiment
@@ -99,9 +100,12 @@ def test_register_refuses_a_second_method_of_the_same_name_and_a_non_method():
     with pytest.raises(TypeError, match="Method"):
         register("dlow")
     with pytest.raises(ValueError, match="reference_futures"):
-        Method(name="x", config_type=dict, stages=None, predictors=None, reference_futures="elsewhere")
+        Method(name="x", config_type=dict, stages=m.stages, predictors=m.predictors, reference_futures="elsewhere")
+    init, tx = (lambda key, frozen: {}), optax.sgd(0.1)
     with pytest.raises(ValueError, match="folder name"):
-        Stage(name="a/b", init=None, optimizer=None, loss=None, batches=None, num_steps=1)
+        Stage(name="a/b", init=init, optimizer=tx, loss=None, batches=None, num_steps=0)
+    with pytest.raises(ValueError, match="needs a loss and batches"):
+        Stage(name="a", init=init, optimizer=tx, loss=None, batches=None, num_steps=3)
     assert experiment.resolve(Config(method="twice", method_config={})).method_config == {}
 
 

@@ -28,7 +28,7 @@ def _setup(latent):
     # Jitted where the property is not about jit: compiling once is faster than op-by-op scans.
     params = jax.jit(model.init)(jax.random.key(0), x, y, jax.random.key(1))
     q = mojo.q_model(cfg, T_PRED, K)
-    q_params = jax.jit(q.init)(jax.random.key(2), x, jnp.zeros((1, q.n_low, NZ)))
+    q_params = jax.jit(q.init)(jax.random.key(2), x, jnp.zeros((x.shape[0], q.n_low, NZ)))
     return cfg, model, params, q, q_params, x, y
 
 
@@ -225,7 +225,7 @@ def test_unshared_band_networks_have_one_network_per_band():
     cfg = mojo.MojoConfig(nz=NZ, q_shared_trunk=False, q_nh_rnn=8, q_nh_mlp=(16,))
     q = mojo.q_model(cfg, T_PRED, K)
     x = _arr(0, (2, T_HIS, D))
-    p = jax.jit(q.init)(jax.random.key(0), x, jnp.zeros((1, q.n_low, NZ)))
+    p = jax.jit(q.init)(jax.random.key(0), x, jnp.zeros((x.shape[0], q.n_low, NZ)))
     leaves = jax.tree.leaves(p)
     assert all(leaf.shape[0] == q.n_low for leaf in leaves)
     z, a, b = q.apply(p, x, _arr(1, (2, q.n_low, NZ)))
@@ -259,6 +259,7 @@ def get_config():
 """
 
 
+@pytest.mark.slow
 def test_mojo_method_trains_resumes_and_reports_realism(tmp_path):
     cfg = tmp_path / "tiny_mojo.py"
     cfg.write_text(TINY)

@@ -18,12 +18,13 @@ once and used by every CVAE in the library, DivSamp's GCN CVAE included.
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Float
 
 from jaxmotion.dct import dct, idct
 from jaxmotion.nn.gru import GRU, GRUCell, gru_update
@@ -33,14 +34,14 @@ from jaxmotion.nn.mlp import MLP
 LATENT_KINDS = ("vector", "dct")
 
 
-def reparameterise(mu: Float[Array, "..."], logvar: Float[Array, "..."], key: jax.Array | None) -> Float[Array, "..."]:
+def reparameterise(mu: Float[ArrayLike, "..."], logvar: Float[ArrayLike, "..."], key: jax.Array | None) -> Float[Array, "..."]:
     """Returns `mu + exp(logvar / 2) * eps`, eps ~ N(0, I) (Kingma & Welling Eq. (10)); `mu` when `key` is None."""
     if key is None:
         return mu
     return mu + jnp.exp(0.5 * logvar) * jax.random.normal(key, mu.shape)
 
 
-def vmap_k(decode: Callable[[jax.Array], jax.Array], z: Float[Array, "b k ..."]) -> Float[Array, "b k ..."]:
+def vmap_k(decode: Callable[[jax.Array], jax.Array], z: Float[ArrayLike, "b k ..."]) -> Float[Array, "b k ..."]:
     """Returns `decode` applied to each of the K latents `z[:, k]`, stacked on axis 1 (one `jax.vmap`, no loop)."""
     return jnp.swapaxes(jax.vmap(decode, in_axes=1)(z), 0, 1)
 
@@ -48,15 +49,15 @@ def vmap_k(decode: Callable[[jax.Array], jax.Array], z: Float[Array, "b k ..."])
 class DecodeCarry(NamedTuple):
     """Decoder state between steps: GRU hidden state `h (b, nh)` and the previous frame `y_prev (b, D)`."""
 
-    h: Float[Array, "b h"]
-    y_prev: Float[Array, "b d"]
+    h: Float[ArrayLike, "b h"]
+    y_prev: Float[ArrayLike, "b d"]
 
 
 class DecodeInputs(NamedTuple):
     """Per-step decoder inputs: the past code `h_x (b, nh)` and the time-domain latent `z_t (b, nz)`."""
 
-    h_x: Float[Array, "b h"]
-    z_t: Float[Array, "b z"]
+    h_x: Float[ArrayLike, "b h"]
+    z_t: Float[ArrayLike, "b z"]
 
 
 class GRUCVAE(nn.Module):
@@ -99,11 +100,11 @@ class GRUCVAE(nn.Module):
         self.d_mlp = MLP(self.nh_mlp, dense_init=init)
         self.d_out = Dense(self.dim, rule=init)
 
-    def encode_x(self, x: Float[Array, "b t_his d"]) -> Float[Array, "b h"]:
+    def encode_x(self, x: Float[ArrayLike, "b t_his d"]) -> Float[Array, "b h"]:
         """Returns the last hidden state of the past encoder GRU."""
         return self.x_rnn(x)[:, -1]
 
-    def encode(self, x: Float[Array, "b t_his d"], y: Float[Array, "b t_pred d"]):
+    def encode(self, x: Float[ArrayLike, "b t_his d"], y: Float[ArrayLike, "b t_pred d"]):
         """Returns `(mu, logvar)` of q(z | X, Y): one Gaussian (vector) or one per DCT band (MOJO Sec. 3.3)."""
         h_x = self.encode_x(x)
         h_y = self.e_rnn(y)  # a hidden state per future frame keeps full temporal resolution
@@ -121,7 +122,7 @@ class GRUCVAE(nn.Module):
             return idct(z, self.horizon)
         return jnp.broadcast_to(z[:, None], (z.shape[0], self.horizon, z.shape[-1]))
 
-    def decode_init(self, x: Float[Array, "b t_his d"], z, h_x=None) -> tuple[DecodeCarry, DecodeInputs]:
+    def decode_init(self, x: Float[ArrayLike, "b t_his d"], z, h_x=None) -> tuple[DecodeCarry, DecodeInputs]:
         """Returns `(carry0, inputs)`: the first decoder state and time-major per-step inputs `(t_pred, b, .)`."""
         if h_x is None:
             h_x = self.encode_x(x)
@@ -140,7 +141,7 @@ class GRUCVAE(nn.Module):
             y = y + carry.y_prev
         return DecodeCarry(h, y), y
 
-    def decode(self, x: Float[Array, "b t_his d"], z, h_x=None) -> Float[Array, "b t_pred d"]:
+    def decode(self, x: Float[ArrayLike, "b t_his d"], z, h_x=None) -> Float[Array, "b t_pred d"]:
         """Returns the decoded future `(batch, horizon, dim)` for latents `z` (pass `h_x` to reuse it).
 
         Computes exactly `decode_step` `horizon` times, with the share of the GRU input gates of
@@ -179,20 +180,20 @@ class GRUCVAE(nn.Module):
         return self.decode(x, reparameterise(mu, logvar, key)), mu, logvar
 
 
-def decode_k(model: GRUCVAE, params, x: Float[Array, "b t_his d"], z) -> Float[Array, "b k t_pred d"]:
+def decode_k(model: GRUCVAE, params, x: Float[ArrayLike, "b t_his d"], z) -> Float[Array, "b k t_pred d"]:
     """Returns the K futures decoded from latents `z (b, K) + latent_shape` (vmapped over K; the past is encoded once)."""
     h_x = model.apply(params, x, method=GRUCVAE.encode_x)
     return vmap_k(lambda z_k: model.apply(params, x, z_k, h_x, method=GRUCVAE.decode), z)
 
 
-def sample_prior(model: GRUCVAE, params, x: Float[Array, "b t_his d"], key: jax.Array, k: int) -> Float[Array, "b k t_pred d"]:
+def sample_prior(model: GRUCVAE, params, x: Float[ArrayLike, "b t_his d"], key: jax.Array, k: int) -> Float[Array, "b k t_pred d"]:
     """Returns K futures with latents drawn i.i.d. from N(0, I): the plain CVAE sampler (DLow's "CVAE" row, MOJO's VAE+DCT)."""
     z = jax.random.normal(key, (x.shape[0], k) + model.latent_shape)
     return decode_k(model, params, x, z)
 
 
 def cvae_objective(
-    y_rec: Float[Array, "b t_pred d"], y: Float[Array, "b t_pred d"], x_last: Float[Array, "b d"], kld: Float[Array, ""],
+    y_rec: Float[ArrayLike, "b t_pred d"], y: Float[ArrayLike, "b t_pred d"], x_last: Float[ArrayLike, "b d"], kld: Float[ArrayLike, ""],
     *, beta: float, lambda_v: float,
 ) -> tuple[Float[Array, ""], dict]:
     """Returns `(loss, metrics)`: DLow's CVAE objective for a batch whose KL term (summed per window, averaged) is `kld`.

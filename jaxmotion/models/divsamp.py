@@ -33,7 +33,7 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Float
 
 from jaxmotion.dct import dct, idct
 from jaxmotion.gumbel import COEFFICIENT_KINDS, sample_coefficients
@@ -134,12 +134,12 @@ def check_config(c: DivSampConfig) -> DivSampConfig:
 # Frames <-> DCT node features.
 
 
-def pad_history(x: Float[Array, "b t_his d"], t_pred: int) -> Float[Array, "b t d"]:
+def pad_history(x: Float[ArrayLike, "b t_his d"], t_pred: int) -> Float[Array, "b t d"]:
     """Returns the history followed by `t_pred` copies of its last pose (DivSamp Sec. 3.1)."""
     return jnp.concatenate([x, jnp.repeat(x[:, -1:], t_pred, axis=1)], axis=1)
 
 
-def to_nodes(seq: Float[Array, "b t d"], n_dct: int) -> Float[Array, "b j c"]:
+def to_nodes(seq: Float[ArrayLike, "b t d"], n_dct: int) -> Float[Array, "b j c"]:
     """Returns `(b, J, 3 * n_dct)`: the first `n_dct` DCT coefficients of each coordinate, grouped by joint."""
     c = dct(seq, n_dct)  # (b, n_dct, D)
     b, n, d = c.shape
@@ -147,7 +147,7 @@ def to_nodes(seq: Float[Array, "b t d"], n_dct: int) -> Float[Array, "b j c"]:
     return c.reshape(b, n, d // 3, 3).transpose(0, 2, 3, 1).reshape(b, d // 3, 3 * n)
 
 
-def from_nodes(nodes: Float[Array, "b j c"], n_frames: int) -> Float[Array, "b t d"]:
+def from_nodes(nodes: Float[ArrayLike, "b j c"], n_frames: int) -> Float[Array, "b t d"]:
     """Returns the `(b, n_frames, D)` frames whose DCT coefficients are `nodes` (the inverse of `to_nodes`)."""
     b, j, c = nodes.shape
     n = c // 3
@@ -155,12 +155,12 @@ def from_nodes(nodes: Float[Array, "b j c"], n_frames: int) -> Float[Array, "b t
     return idct(coeffs, n_frames)
 
 
-def condition_nodes(x: Float[Array, "b t_his d"], t_pred: int, n_dct: int) -> Float[Array, "b j c"]:
+def condition_nodes(x: Float[ArrayLike, "b t_his d"], t_pred: int, n_dct: int) -> Float[Array, "b j c"]:
     """Returns the DCT node features of the padded history: the input of both networks."""
     return to_nodes(pad_history(x, t_pred), n_dct)
 
 
-def bone_lengths(frames: Float[Array, "... d"], parents: tuple[int, ...]) -> Float[Array, "... b"]:
+def bone_lengths(frames: Float[ArrayLike, "... d"], parents: tuple[int, ...]) -> Float[Array, "... b"]:
     """Returns the `J - 1` bone lengths of root-relative, root-dropped frame vectors (PROTOCOL sec. 1)."""
     pos = frames.reshape(frames.shape[:-1] + (-1, 3))
     pos = jnp.concatenate([jnp.zeros_like(pos[..., :1, :]), pos], axis=-2)  # the root sits at the origin
@@ -188,13 +188,13 @@ class DivSampCVAE(nn.Module):
         self.dec = GCLStack(self.hidden, self.num_residual)
         self.d_out = GraphConv(3 * self.n_dct)
 
-    def encode(self, cx: Float[Array, "b j c"], cw: Float[Array, "b j c"], *, train: bool):
+    def encode(self, cx: Float[ArrayLike, "b j c"], cw: Float[ArrayLike, "b j c"], *, train: bool):
         """Returns `(mu, logvar)` of q(z | X, Y) from the coefficients of the padded history and of the window."""
         h = self.enc(jnp.concatenate([cx, cw], axis=-1), train=train)
         h = h.reshape(h.shape[0], -1)
         return self.e_mu(h), self.e_logvar(h)
 
-    def decode(self, cx: Float[Array, "b j c"], z: Float[Array, "b z"], *, train: bool) -> Float[Array, "b j c"]:
+    def decode(self, cx: Float[ArrayLike, "b j c"], z: Float[ArrayLike, "b z"], *, train: bool) -> Float[Array, "b j c"]:
         """Returns the window's DCT node features for latents `z`: `cx + GCN([cx, z])`."""
         zj = jnp.broadcast_to(z[:, None, :], (z.shape[0], cx.shape[1], z.shape[-1]))
         h = self.dec(jnp.concatenate([cx, zj], axis=-1), train=train)
@@ -214,7 +214,7 @@ class GammaHead(nn.Module):
     dense_init: str = "flax"
 
     @nn.compact
-    def __call__(self, p: Float[Array, "... n"], *, train: bool) -> Float[Array, "... o"]:
+    def __call__(self, p: Float[ArrayLike, "... n"], *, train: bool) -> Float[Array, "... o"]:
         h = Dense(self.nh, rule=self.dense_init, name="dense_0")(p)
         # Statistics over all leading axes, i.e. over the b * K points, like the release's
         # BatchNorm1d on the (b * nk, n_b) matrix.
@@ -238,7 +238,7 @@ class DivSampSampler(nn.Module):
     dense_init: str = "flax"
 
     @nn.compact
-    def __call__(self, cx: Float[Array, "b j c"], key: jax.Array, k: int, *, train: bool, shared_eps: bool = True):
+    def __call__(self, cx: Float[ArrayLike, "b j c"], key: jax.Array, k: int, *, train: bool, shared_eps: bool = True):
         """Returns `(z, mean, logvar)`; `eps` is one draw per window shared by its K latents (training, the release),
         or K independent draws with `shared_eps=False` (the release at test time)."""
         b = cx.shape[0]
@@ -285,7 +285,7 @@ def sampler_from_config(c: DivSampConfig) -> DivSampSampler:
 # Samplers.
 
 
-def decode_k(cvae: DivSampCVAE, variables, cx: Float[Array, "b j c"], z: Float[Array, "b k z"], *, t_his: int, t_pred: int):
+def decode_k(cvae: DivSampCVAE, variables, cx: Float[ArrayLike, "b j c"], z: Float[ArrayLike, "b k z"], *, t_his: int, t_pred: int):
     """Returns the `(b, K, t_pred, D)` futures decoded from latents `z` (BatchNorm in evaluation mode; vmapped over K)."""
 
     def one(z_k):
@@ -295,7 +295,7 @@ def decode_k(cvae: DivSampCVAE, variables, cx: Float[Array, "b j c"], z: Float[A
     return vmap_k(one, z)
 
 
-def sample_prior(cvae: DivSampCVAE, variables, x: Float[Array, "b t_his d"], key, k: int, *, t_pred: int):
+def sample_prior(cvae: DivSampCVAE, variables, x: Float[ArrayLike, "b t_his d"], key, k: int, *, t_pred: int):
     """Returns K futures `(b, K, t_pred, D)` with latents drawn i.i.d. from N(0, I): the plain CVAE baseline."""
     cx = condition_nodes(x, t_pred, cvae.n_dct)
     z = jax.random.normal(key, (x.shape[0], k, cvae.nz))
@@ -303,7 +303,7 @@ def sample_prior(cvae: DivSampCVAE, variables, x: Float[Array, "b t_his d"], key
 
 
 def sample_divsamp(
-    cvae: DivSampCVAE, cvae_variables, sampler: DivSampSampler, sampler_variables, x: Float[Array, "b t_his d"], key, k: int,
+    cvae: DivSampCVAE, cvae_variables, sampler: DivSampSampler, sampler_variables, x: Float[ArrayLike, "b t_his d"], key, k: int,
     *, t_pred: int, test_eps: str = "shared",
 ):
     """Returns DivSamp's K futures `(b, K, t_pred, D)` (Alg. 2): K auxiliary points -> K Gaussians -> K latents -> decoder.
@@ -323,7 +323,7 @@ def sample_divsamp(
 
 
 def cvae_loss(
-    cvae: DivSampCVAE, variables, batch: Float[Array, "b t d"], key, *, t_his: int, parents: tuple[int, ...],
+    cvae: DivSampCVAE, variables, batch: Float[ArrayLike, "b t d"], key, *, t_his: int, parents: tuple[int, ...],
     beta: float, lambda_v: float, lambda_his: float, lambda_limb: float,
 ):
     """Returns the CVAE objective of the release's `run_cvae.py` and the updated BatchNorm statistics.
@@ -352,7 +352,7 @@ def cvae_loss(
 
 
 def sampler_loss(
-    sampler: DivSampSampler, variables, cvae: DivSampCVAE, cvae_variables, batch: Float[Array, "b t d"], key, *,
+    sampler: DivSampSampler, variables, cvae: DivSampCVAE, cvae_variables, batch: Float[ArrayLike, "b t d"], key, *,
     t_his: int, k: int, lambda_kl: float, lambda_acc: float, lambda_div: float, eta: float,
     diversity: Literal["hinge", "exp"] = "hinge", d_scale: float = 50.0,
 ):

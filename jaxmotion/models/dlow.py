@@ -15,7 +15,7 @@ import dataclasses
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Float
 
 from jaxmotion.losses import dlow_diversity, kld_affine, kld_normal, min_of_k_sq_error
 from jaxmotion.models.cvae import GRUCVAE, cvae_objective, decode_k, sample_prior
@@ -116,7 +116,7 @@ class QTrunk(nn.Module):
     dense_init: str = "flax"  # "torch" (the releases' nn.Linear) or "flax" (nn.Dense)
 
     @nn.compact
-    def __call__(self, x: Float[Array, "b t_his d"]):
+    def __call__(self, x: Float[ArrayLike, "b t_his d"]):
         h = GRU(self.nh_rnn, name="x_rnn")(x)[:, -1]
         h = MLP(self.nh_mlp, dense_init=self.dense_init, name="mlp")(h)
         # One Dense with n_heads * nk * nz outputs is exactly n_heads unshared linear heads.
@@ -132,7 +132,7 @@ class DLowQ(QTrunk):
     nz: int = 128
     nk: int = 50
 
-    def __call__(self, x: Float[Array, "b t_his d"], eps: Float[Array, "b z"]):
+    def __call__(self, x: Float[ArrayLike, "b t_his d"], eps: Float[ArrayLike, "b z"]):
         a, b = super().__call__(x)
         a, b = a[:, 0], b[:, 0]
         return a * eps[:, None, :] + b, a, b
@@ -150,7 +150,7 @@ def sample_dlow(cvae: DLowCVAE, cvae_params, q: DLowQ, q_params, x, key: jax.Arr
     return decode_k(cvae, cvae_params, x, z)
 
 
-def cvae_loss(cvae: DLowCVAE, params, batch: Float[Array, "b t d"], key, *, t_his: int, beta: float, lambda_v: float):
+def cvae_loss(cvae: DLowCVAE, params, batch: Float[ArrayLike, "b t d"], key, *, t_his: int, beta: float, lambda_v: float):
     """Returns `(loss, metrics)`: DLow's CVAE objective (`models.cvae.cvae_objective`), KL summed per window."""
     x, y = batch[:, :t_his], batch[:, t_his:]
     y_rec, mu, logvar = cvae.apply(params, x, y, key)

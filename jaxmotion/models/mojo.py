@@ -41,7 +41,7 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 from flax import struct
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Float
 
 from jaxmotion.losses import dlow_diversity, kld_normal, min_of_k_sq_error, robust_kld
 from jaxmotion.models.cvae import DecodeCarry, DecodeInputs, GRUCVAE, cvae_objective, decode_k, sample_prior
@@ -155,7 +155,7 @@ def decoder_params(model: MojoCVAE, variables) -> DecoderParams:
     return DecoderParams(variables, model)
 
 
-def decode_inputs(params: DecoderParams, x: Float[Array, "b t_his d"], z: Float[Array, "b c z"]):
+def decode_inputs(params: DecoderParams, x: Float[ArrayLike, "b t_his d"], z: Float[ArrayLike, "b c z"]):
     """Returns `(carry0, inputs)` for `lax.scan(lambda c, i: decode_step(params, c, i), carry0, inputs)`.
 
     `inputs` are time-major `DecodeInputs` with leading axis `t_pred`; `z` holds the band latents.
@@ -193,7 +193,7 @@ class MojoQ(nn.Module):
     dense_init: str = "flax"
 
     @nn.compact
-    def __call__(self, x: Float[Array, "b t_his d"], eps: Float[Array, "b l z"]):
+    def __call__(self, x: Float[ArrayLike, "b t_his d"], eps: Float[ArrayLike, "b l z"]):
         if self.shared_trunk:
             a, b = QTrunk(self.nz, self.nk, self.n_low, self.nh_rnn, tuple(self.nh_mlp), self.dense_init, name="q")(x)
         else:
@@ -240,7 +240,7 @@ def sample_mojo(model: MojoCVAE, params, q: MojoQ, q_params, x, key: jax.Array) 
 
 
 def cvae_loss(
-    model: MojoCVAE, params, batch: Float[Array, "b t d"], key, *, t_his: int, objective: str = "mojo",
+    model: MojoCVAE, params, batch: Float[ArrayLike, "b t d"], key, *, t_his: int, objective: str = "mojo",
     alpha: float = 3.0, beta: float = 1.0, robust: bool = True, lambda_v: float = 1000.0,
 ):
     """Returns `(loss, metrics)`: MOJO Eq. (1) (`objective="mojo"`) or DLow's CVAE objective (`"dlow"`).
@@ -272,7 +272,7 @@ def cvae_loss_weights(cfg: MojoConfig) -> dict:
     return dict(objective=cfg.loss, alpha=cfg.alpha, beta=cfg.beta, robust=cfg.robust_kld, lambda_v=cfg.lambda_v)
 
 
-def min_of_k_l1_error(y_k: Float[Array, "k t d"], y: Float[Array, "t d"]) -> Float[Array, ""]:
+def min_of_k_l1_error(y_k: Float[ArrayLike, "k t d"], y: Float[ArrayLike, "t d"]) -> Float[Array, ""]:
     """Returns min_k sum_{t,d} |y_k - y|: the release's MOJO reconstruction term for one window."""
     return jnp.min(jnp.sum(jnp.abs(y_k - y[None]), axis=(-2, -1)))
 

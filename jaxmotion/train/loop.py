@@ -13,7 +13,8 @@ import json
 import math
 import time
 from pathlib import Path
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -36,6 +37,12 @@ class TrainState(struct.PyTreeNode):
     params: Any
     opt_state: Any
     frozen: Any = None
+
+
+# JAX rebuilds a `flax.struct` pytree through `__init__` with whatever leaves a transformation
+# carries (None, placeholders), so a check of the fields there is wrong (jaxtyping issue #277, as
+# `body.skeleton.SkeletonBody`): `__init__` is opted out of the test suite's import hook.
+TrainState.__init__.__no_type_check__ = True
 
 
 def create_state(params, tx: optax.GradientTransformation, frozen=None) -> TrainState:

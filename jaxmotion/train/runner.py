@@ -91,6 +91,8 @@ def check_stage_dir(method: Method, stage: Stage, state: TrainState, stage_dir: 
 
 
 def _train_step(stage: Stage):
+    if stage.num_steps == 0:  # a computed stage: `fit` only checkpoints its parameters
+        return lambda state, batch, key: (state, {})
     make = make_bn_train_step if stage.batch_norm else make_train_step
     return make(stage.loss, stage.optimizer)
 
@@ -112,7 +114,7 @@ def run_stage(
     if not manifest.exists():
         manifest.write_text(json.dumps(_manifest(method, stage, state, upstream), indent=1))
     state = fit(
-        state, _train_step(stage), stage.batches, num_steps=stage.num_steps, workdir=stage_dir,
+        state, _train_step(stage), stage.batches or (lambda rng: None), num_steps=stage.num_steps, workdir=stage_dir,
         seed=stage.data_seed, resume=resume, ckpt_every=cfg.ckpt_every, log_every=cfg.log_every,
         desc=f"{method.name} {stage.name}",
     )
