@@ -59,7 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     workdir = Path(args.workdir or Path("runs") / cfg.name).absolute()
     t0 = time.perf_counter()
     ds = experiment.load_data(cfg, args.data)
-    prep = experiment.prepare(ds, cfg.max_test_windows)
+    prep = experiment.prepare(ds, cfg.max_test_windows, cfg.train_sampler)
     label = ds.name
     print(
         f"data: {ds.name}: {len(ds.train)} train / {len(ds.test)} test sequences, D={ds.dim}, "

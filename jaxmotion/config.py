@@ -38,6 +38,9 @@ class Config:
     log_every: int = 50
     eval_batch: int = 64
     max_test_windows: int | None = None  # None: every protocol window
+    # Training windows: "windows" (each valid window equally likely) or "sequences" (DLow's release:
+    # a sequence uniformly, then a start). Every measured table used "windows".
+    train_sampler: str = "windows"
     mm_deviation: str | None = None  # None (protocol), "divsamp" or "comusion"
 
 

@@ -72,13 +72,16 @@ class Prepared:
         return self.windows[:, self.dataset.t_his :]
 
 
-def prepare(ds: MotionDataset, max_test_windows: int | None = None) -> Prepared:
+def prepare(ds: MotionDataset, max_test_windows: int | None = None, train_sampler: str = "windows") -> Prepared:
     """Returns train sampler and test windows (PROTOCOL sec. 3: test stride t_his, random train starts).
+
+    `train_sampler` weights the training windows (`TrainSampler`): "windows" (each equally likely)
+    or "sequences" (DLow's release: a sequence uniformly, then a start).
 
     Marker datasets' windows are canonicalised at their first frame (PROTOCOL sec. 4).
     """
     train, train_canon = split_frames(ds, "train")
-    sampler = TrainSampler(train, ds.t_total, train_canon)
+    sampler = TrainSampler(train, ds.t_total, train_canon, weighting=train_sampler)
     test, test_canon = split_frames(ds, "test")
     windows, seq_index, starts = test_windows(test, ds.t_his, ds.t_pred)
     if test_canon is not None:

@@ -65,25 +65,32 @@ def canonicalise_windows(windows: np.ndarray, canon: np.ndarray) -> np.ndarray:
 class TrainSampler:
     """Draws training windows at random start frames (PROTOCOL sec. 3).
 
-    A sequence is chosen with probability proportional to its number of valid starts, so every
-    valid window is equally likely (DLow picks subject then action uniformly; we document this
-    deviation because it weights long sequences fairly). Uses a numpy Generator seeded explicitly.
+    `weighting="windows"` (default): a sequence is chosen with probability proportional to its
+    number of valid starts, so every valid window is equally likely. `weighting="sequences"`: DLow's
+    release (`sample_iter_action`): a sequence uniformly, then a start in `[0, T - t_total)`, so a
+    sequence of exactly `t_total` frames is never drawn. Uses a numpy Generator seeded explicitly.
     With `canon` (one `(T, 4, 3)` array per sequence, marker data) each window is expressed in the
     canonical frame of its first frame.
     """
 
-    def __init__(self, frames: list[np.ndarray], t_total: int, canon: list[np.ndarray] | None = None):
+    def __init__(
+        self, frames: list[np.ndarray], t_total: int, canon: list[np.ndarray] | None = None, weighting: str = "windows"
+    ):
+        if weighting not in SAMPLER_WEIGHTINGS:
+            raise ValueError(f"TrainSampler: weighting must be one of {SAMPLER_WEIGHTINGS}, got {weighting!r}")
+        # DLow's release draws starts in [0, T - t_total): it needs T > t_total.
+        min_len = t_total if weighting == "windows" else t_total + 1
         if canon is not None:
             if len(canon) != len(frames):
                 raise ValueError(f"TrainSampler: {len(canon)} canonical-frame arrays for {len(frames)} sequences")
-            canon = [c for f, c in zip(frames, canon) if f.shape[0] >= t_total]
+            canon = [c for f, c in zip(frames, canon) if f.shape[0] >= min_len]
         self.canon = canon
-        self.frames = [f for f in frames if f.shape[0] >= t_total]
+        self.frames = [f for f in frames if f.shape[0] >= min_len]
         if not self.frames:
-            raise ValueError(f"TrainSampler: no sequence has at least t_total = {t_total} frames")
-        self.t_total = t_total
-        counts = np.array([f.shape[0] - t_total + 1 for f in self.frames], dtype=np.float64)
-        self.p = counts / counts.sum()
+            raise ValueError(f"TrainSampler: no sequence has at least {min_len} frames (t_total = {t_total}, {weighting!r})")
+        self.t_total, self.weighting = t_total, weighting
+        counts = np.array([f.shape[0] - min_len + 1 for f in self.frames], dtype=np.float64)
+        self.p = counts / counts.sum() if weighting == "windows" else np.full(len(self.frames), 1.0 / len(self.frames))
         self.num_windows = int(counts.sum())
 
     def sample(self, rng: np.random.Generator, batch_size: int) -> np.ndarray:
@@ -93,11 +100,14 @@ class TrainSampler:
         canon = np.empty((batch_size, 4, 3)) if self.canon is not None else None
         for b, s in enumerate(seqs):
             f = self.frames[s]
-            start = rng.integers(0, f.shape[0] - self.t_total + 1)
+            start = rng.integers(0, f.shape[0] - self.t_total + (1 if self.weighting == "windows" else 0))
             out[b] = f[start : start + self.t_total]
             if canon is not None:
                 canon[b] = self.canon[s][start]
         return out if canon is None else canonicalise_windows(out, canon)
+
+
+SAMPLER_WEIGHTINGS = ("windows", "sequences")
 
 
 def sequence_frames(seqs: list[Sequence], root: int = 0) -> list[np.ndarray]:
