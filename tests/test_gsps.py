@@ -121,16 +121,16 @@ def test_angle_roles_from_names_of_every_skeleton():
     assert gsps.body_parts(HUMANEVA_JOINT_NAMES, HUMANEVA_PARENTS, "lower_upper") == ((7, 8, 9, 10, 11, 12), (0, 1, 2, 3, 4, 5, 6, 13))
     # ... and Human3.6M's (`h36m.yml`), whose 17-joint layout the synthetic skeleton shares.
     assert gsps.body_parts(SKELETON.names, PARENTS, "lower_upper") == (tuple(range(6)), tuple(range(6, 16)))
-    with pytest.raises(ValueError, match="l_knee"):
+    with pytest.raises(ValueError, match="no joint for role l_hip"):
         gsps.angle_roles(("Hips", "Head"), (-1, 0))
 
 
 def test_measured_bounds_hold_real_poses_and_reject_backward_knees():
     train, test = _data()
-    bounds = gsps.measure_angle_bounds(train[::5], ROLES, 0.1)
+    bounds = gsps.measure_angle_bounds(train[::5], ROLES, 0.1, margin=0.05)
     assert bounds.shape == (len(gsps.ANGLE_NAMES), 2) and np.all(bounds[:, 0] <= bounds[:, 1])
     frac_real = float(gsps.violation_fraction(jnp.asarray(test)[None], ROLES, jnp.asarray(bounds))[0])
-    assert frac_real < 0.03
+    assert frac_real < 0.01
     bent = test[_knee_flexion(test) > np.deg2rad(20)]
     cos = gsps.angle_cosines(jnp.asarray(_bend_knee_backwards(bent)), ROLES)
     viol = gsps.angle_violations(cos, jnp.asarray(bounds))

@@ -141,7 +141,7 @@ def test_tsne_embed_separates_clusters():
     rng = np.random.default_rng(4)
     centres = rng.normal(size=(3, 16)) * 5
     codes = np.concatenate([c + 0.1 * rng.normal(size=(60, 16)) for c in centres]).astype(np.float32)
-    pts = mm.tsne_embed(codes, fit_points=90, perplexity_fit=20, perplexity_transform=10)
+    pts = mm.tsne_embed(codes, fit_points=90, perplexity_fit=20.0, perplexity_transform=10.0)
     lab = np.repeat(np.arange(3), 60)
     means = np.stack([pts[lab == k].mean(0) for k in range(3)])
     within = np.mean([np.linalg.norm(pts[lab == k] - means[k], axis=-1).mean() for k in range(3)])

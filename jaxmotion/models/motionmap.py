@@ -322,7 +322,7 @@ def find_peaks(
     valid = jnp.isfinite(vals)
 
     def keep_step(i, keep):
-        cheb = jnp.max(jnp.abs(cells - cells[:, i : i + 1]), axis=-1)  # (b, p)
+        cheb = jnp.max(jnp.abs(cells - cells[:, i][:, None]), axis=-1)  # (b, p)
         blocked = jnp.any(keep & (cheb <= min_distance) & (jnp.arange(p) < i)[None], axis=-1)
         return keep.at[:, i].set(valid[:, i] & ~blocked)
 
