@@ -39,6 +39,7 @@ def test_rot6d_roundtrip_and_orthonormal():
     np.testing.assert_allclose(rot.rot6d_to_matrix(jnp.asarray(rot.IDENTITY_6D)), jnp.eye(3), atol=1e-7)
 
 
+@pytest.mark.slow
 def test_axis_angle_is_the_matrix_exponential_with_finite_gradient_at_zero():
     v = 0.7 * jax.random.normal(jax.random.key(2), (8, 3))
     expm = jax.vmap(jax.scipy.linalg.expm)(rot.skew(v))
@@ -181,6 +182,7 @@ def _reference_lbs(path, params, num_betas, n_pca):
     return np.einsum("vij,vj->vi", t[:, :3, :3], v) + t[:, :3, 3] + np.asarray(params.transl)
 
 
+@pytest.mark.slow
 def test_smplx_marker_skinning_equals_full_mesh_lbs(tmp_path):
     path = _fake_smplx(tmp_path / "SMPLX_NEUTRAL.npz")
     ids = {"C7": 3, "LFHD": 17, "RTOE": 39, "LWRA": 0}

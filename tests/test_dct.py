@@ -27,6 +27,7 @@ def test_dct_matches_reference_formula():
 
 @given(st.integers(2, 60), st.integers(1, 5), st.integers(0, 2**31 - 1))
 @settings(max_examples=25, deadline=None)
+@pytest.mark.slow
 def test_full_dct_reconstructs_perfectly(t, d, seed):
     x = np.random.default_rng(seed).normal(size=(3, t, d)).astype(np.float32)
     np.testing.assert_allclose(np.asarray(idct(dct(jnp.asarray(x)), t)), x, atol=1e-4)

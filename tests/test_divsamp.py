@@ -63,6 +63,7 @@ def test_decoder_adds_the_padded_history(models):
     assert np.asarray(cvae.apply(cv, cx, jnp.ones((B, NZ)), train=False, method=divsamp.DivSampCVAE.decode)).shape == (B, J, 3 * NDCT)
 
 
+@pytest.mark.slow
 def test_any_k_gives_k_futures(models):
     cvae, cv, sampler, sv = models
     for k in (1, 2, 33):
@@ -71,6 +72,7 @@ def test_any_k_gives_k_futures(models):
     assert divsamp.sample_prior(cvae, cv, _x(), jax.random.key(5), 3, t_pred=T_PRED).shape == (B, 3, T_PRED, D)
 
 
+@pytest.mark.slow
 def test_sampling_under_jit_equals_sampling_without(models):
     cvae, cv, sampler, sv = models
     f = lambda x, key: divsamp.sample_divsamp(cvae, cv, sampler, sv, x, key, 6, t_pred=T_PRED)
@@ -83,6 +85,7 @@ def test_sampling_under_jit_equals_sampling_without(models):
     assert float(jnp.abs(eager[:, 0] - eager[:, 1]).max()) > 1e-6
 
 
+@pytest.mark.slow
 def test_eval_mode_futures_do_not_depend_on_the_other_windows(models):
     cvae, cv, sampler, sv = models
     x = _x(b=4, seed=1)
@@ -95,6 +98,7 @@ def test_eval_mode_futures_do_not_depend_on_the_other_windows(models):
     np.testing.assert_allclose(np.asarray(y_all[2:3]), np.asarray(y_one), atol=1e-5)
 
 
+@pytest.mark.slow
 def test_one_basis_vector_gives_one_gaussian():
     # M = 1: every row of W is [1], all K points coincide, so all K Gaussians are the same.
     s = divsamp.DivSampSampler(nz=NZ, hidden=8, num_residual=0, num_bases=1, base_dim=4, nh=8)
@@ -106,6 +110,7 @@ def test_one_basis_vector_gives_one_gaussian():
 
 
 @pytest.mark.parametrize("pi,coef", [("learned_shared", "gumbel"), ("learned_per_sample", "gumbel"), ("uniform", "gaussian")])
+@pytest.mark.slow
 def test_sampler_options(pi, coef):
     s = divsamp.DivSampSampler(nz=NZ, hidden=8, num_residual=0, num_bases=4, base_dim=4, nh=8, pi=pi, coefficients=coef)
     cx = divsamp.condition_nodes(_x(), T_PRED, NDCT)
@@ -116,6 +121,7 @@ def test_sampler_options(pi, coef):
     assert z.shape == (B, 5, NZ)
 
 
+@pytest.mark.slow
 def test_hinge_diversity():
     y = jnp.asarray(np.random.default_rng(0).normal(size=(6, 4, 3)), jnp.float32)
     d = np.linalg.norm(np.asarray(y).reshape(6, 1, -1) - np.asarray(y).reshape(1, 6, -1), axis=-1)
@@ -139,6 +145,7 @@ def test_bone_lengths():
     np.testing.assert_allclose(np.asarray(divsamp.bone_lengths(frames, (-1, 0, 1))), [[2.0, 3.0]], atol=1e-6)
 
 
+@pytest.mark.slow
 def test_sampler_step_trains_the_sampler_only_and_updates_its_statistics(models):
     cvae, cv, sampler, sv = models
     tx = bn_optimizer(optax.adam(1e-2))
@@ -208,6 +215,7 @@ def test_cli_trains_both_stages_resumes_exactly_and_evaluates(tmp_path):
     assert m["zero_velocity"]["APD"] == 0.0 and m["divsamp"]["APD"] > 0.0 and m["divsamp_cvae"]["APD"] > 0.0
 
 
+@pytest.mark.slow
 def test_test_time_noise_shared_or_independent(models):
     cvae, cv, sampler, sv = models
     x = _x(b=2, t=T_HIS, seed=9)

@@ -62,6 +62,7 @@ def test_decoder_scan_equals_step_by_step_decoding(cvae):
         np.testing.assert_array_equal(np.asarray(carry.y_prev), np.asarray(y_t))
 
 
+@pytest.mark.slow
 def test_sampling_k_by_vmap_equals_loop_and_jit_equals_eager(cvae):
     model, params, x, _ = cvae
     z = jax.random.normal(jax.random.key(3), (B, 4, 8))
@@ -74,6 +75,7 @@ def test_sampling_k_by_vmap_equals_loop_and_jit_equals_eager(cvae):
     np.testing.assert_allclose(np.asarray(jitted), np.asarray(batched), atol=1e-5)
 
 
+@pytest.mark.slow
 def test_dlow_sampler_gives_nk_distinct_futures(cvae):
     model, params, x, _ = cvae
     q = dlow.DLowQ(nz=8, nk=5, nh_rnn=16, nh_mlp=(32, 16))
@@ -94,6 +96,7 @@ def test_kl_terms():
     assert float(losses.kld_affine(jnp.full(3, 2.0), jnp.zeros(3))) == pytest.approx(3 * 0.5 * (4 - 1 - np.log(4)), rel=1e-5)
 
 
+@pytest.mark.slow
 def test_dlow_diversity_loss():
     same = jnp.zeros((5, 3, 2))
     assert float(losses.dlow_diversity(same, 100.0)) == pytest.approx(1.0)

@@ -83,6 +83,7 @@ def test_missing_markers_are_ignored_and_still_predicted():
     np.testing.assert_allclose(fit2.markers, fit.markers, atol=1e-4)
 
 
+@pytest.mark.slow
 def test_solver_failure_is_a_value_under_jit():
     true = random_params(3, pose_std=0.6)
     f = jax.jit(lambda t: fit_markers(BODY, t, BODY.zero_params(), stages=("global",), max_steps=1, align=False))

@@ -229,3 +229,55 @@ def test_generator_loss_is_finite_and_differentiable():
     assert np.isfinite(float(loss)) and all(np.isfinite(float(x)) for x in m.values())
     assert all(bool(jnp.all(jnp.isfinite(x))) for x in jax.tree.leaves(g["params"]))
     assert 0 < float(m["div_first"]) <= 1 and 0 < float(m["div_rest"]) <= 1
+
+
+# ----------------------------------------------------------------------------------------------
+# The method: stages, predictors, part control.
+
+
+def test_method_is_registered_with_its_stages_in_order():
+    import dataclasses
+
+    from jaxmotion import experiment
+    from jaxmotion.config import load_config
+    from jaxmotion.methods import get_method
+
+    m = get_method("gsps")
+    for path in ("experiments/configs/gsps_synthetic.py", "experiments/configs/gsps_bandai.py"):
+        cfg = load_config(path)
+        assert cfg.method == "gsps" and isinstance(cfg.method_config, gsps.GSPSConfig)
+    ds = make_synthetic(0, train_sequences=1, train_segments=3, test_sequences=1, test_segments=3)
+    cfg = dataclasses.replace(load_config("experiments/configs/gsps_synthetic.py"), method_config=gsps.GSPSConfig(num_steps=1))
+    st = m.stages(cfg, experiment.prepare(ds))
+    assert [s.name for s in st] == ["prior", "angle_bounds", "generator"]
+    assert st[2].frozen == ("prior", "angle_bounds") and st[2].batch_norm and st[1].num_steps == 0
+
+
+@pytest.mark.slow
+def test_tiny_run_trains_samples_any_k_and_fixes_the_lower_body(tmp_path):
+    import dataclasses
+
+    from jaxmotion import experiment
+    from jaxmotion.config import Config
+    from jaxmotion.methods import gsps as method
+
+    ds = make_synthetic(0, train_sequences=1, train_segments=4, test_sequences=1, test_segments=3)
+    c = gsps.GSPSConfig(prior_batch_size=64, prior_num_steps=3, hidden=8, num_stage=1, nz=4, n_pre=5, nk1=2, nk2=2,
+                        batch_size=2, num_steps=3, mm_candidate_stride=15)
+    cfg = Config(name="t", method="gsps", method_config=c, eval_k=(3,), ckpt_every=2, log_every=1)
+    prep = experiment.prepare(ds)
+    params = experiment.train(cfg, prep, tmp_path)
+    assert set(params) == {"prior", "angle_bounds", "generator"}
+    x = jnp.asarray(prep.x[:2])
+    for k in (1, 7):
+        out = experiment.predictors(cfg, ds, params, k)["gsps"](x, jax.random.key(0))
+        assert out.shape == (2, k, 60, 48) and bool(jnp.all(jnp.isfinite(out)))
+    y = method.sample_part_control(cfg, ds, params, x, jax.random.key(1), 10, fix=("lower",))
+    lower, upper = gsps.part_coords(gsps.body_parts(SKELETON.names, PARENTS, "lower_upper"))
+    assert float(jnp.max(jnp.std(y[..., lower], axis=1))) < 1e-6 < float(jnp.max(jnp.std(y[..., upper], axis=1)))
+    with pytest.raises(ValueError, match="unknown part"):
+        method.sample_part_control(cfg, ds, params, x, jax.random.key(1), 10, fix=("legs",))
+    restored = experiment.restore(cfg, prep, tmp_path)
+    np.testing.assert_array_equal(restored["angle_bounds"]["bounds"], params["angle_bounds"]["bounds"])
+    extra = method.extra_metrics(ds, np.asarray(out), prep.y[:2])
+    assert extra["angle_violation"].shape == (2,)

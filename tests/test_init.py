@@ -89,6 +89,7 @@ def _divsamp_params(init):
 
 @pytest.mark.parametrize("init", ["torch", "flax"])
 @pytest.mark.parametrize("build", [_dlow_params, _mojo_params, _divsamp_params], ids=["dlow", "mojo", "divsamp"])
+@pytest.mark.slow
 def test_every_dense_layer_follows_the_chosen_rule(build, init):
     for params in build(init):
         _check_dense(_dense_layers(params), init)

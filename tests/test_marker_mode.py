@@ -71,6 +71,7 @@ def test_canonical_windows_do_not_depend_on_where_and_which_way_the_motion_happe
     assert np.all(canonicalise(mk, jt, BODY.names)[..., 2].max(-1) > 0.3)  # the head is above the root: Z up
 
 
+@pytest.mark.slow
 def test_missing_canonical_frames_are_named():
     s = seq(0, 20)
     bad = dataset([dataclasses.replace(s, canon=None)], [s])
@@ -80,6 +81,7 @@ def test_missing_canonical_frames_are_named():
         TrainSampler([np.zeros((20, 3))], 9, canon=[])
 
 
+@pytest.mark.slow
 def test_marker_bone_deformation_is_zero_for_a_valid_body_and_the_override_makes_it_so():
     mk, _ = motion(2, 40)
     frames = jnp.asarray(mk.reshape(1, 40, -1))
@@ -129,6 +131,7 @@ def test_mojo_with_recursive_projection_keeps_bones_rigid_and_matches_mojo_laten
     assert {"FSE", "BDF", "deform_head", "deform_upper_torso", "deform_lower_torso", "foot_skating"} <= set(r)
 
 
+@pytest.mark.slow
 def test_projection_sampler_needs_a_body():
     from jaxmotion.config import Config
     from jaxmotion.models.mojo import MojoConfig

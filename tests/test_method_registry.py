@@ -65,6 +65,7 @@ def get_config():
 '''
 
 
+@pytest.mark.slow
 def test_a_registered_method_trains_resumes_and_evaluates_through_the_one_runner(tmp_path):
     half, full = tmp_path / "half.py", tmp_path / "full.py"
     half.write_text(TOY.replace("NSTEPS", "20"))

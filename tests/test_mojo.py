@@ -100,6 +100,7 @@ def test_latent_has_a_gaussian_per_dct_band(setup):
     np.testing.assert_allclose(np.asarray(z_t), ref, atol=1e-5)
 
 
+@pytest.mark.slow
 def test_encoder_bands_are_the_dct_of_per_frame_states():
     # A constant future makes the per-frame encoder input constant only in the DCT's band 0 if
     # the encoder GRU state were constant; instead check linearity: the band features equal the
@@ -165,6 +166,7 @@ def test_decode_step_continues_from_a_replaced_frame(dct_setup):
     np.testing.assert_allclose(np.asarray(c_a.y_prev), np.asarray(y_a))
 
 
+@pytest.mark.slow
 def test_no_residual_decoder_outputs_the_head_directly():
     cfg = mojo.MojoConfig(residual=False, nz=NZ, nh_rnn=8, nh_mlp=(8,))
     model = mojo.cvae_model(cfg, D, T_PRED)
@@ -194,6 +196,7 @@ def test_k_samples_by_vmap_equal_a_loop_over_k(setup):
         np.testing.assert_allclose(np.asarray(ys[:, k]), np.asarray(yk), atol=1e-5)
 
 
+@pytest.mark.slow
 def test_jit_and_no_jit_samplers_agree(dct_setup):
     cfg, model, params, q, q_params, x, _ = dct_setup
     key = jax.random.key(9)
@@ -203,6 +206,7 @@ def test_jit_and_no_jit_samplers_agree(dct_setup):
     np.testing.assert_allclose(np.asarray(jax.jit(pr)(x, key)), np.asarray(pr(x, key)), atol=1e-5)
 
 
+@pytest.mark.slow
 def test_dlow_drives_only_the_lowest_bands(dct_setup):
     cfg, model, params, q, q_params, x, _ = dct_setup
     key = jax.random.key(3)
@@ -221,6 +225,7 @@ def test_dlow_drives_only_the_lowest_bands(dct_setup):
     np.testing.assert_allclose(np.asarray(ys), np.asarray(ref), atol=1e-5)
 
 
+@pytest.mark.slow
 def test_unshared_band_networks_have_one_network_per_band():
     cfg = mojo.MojoConfig(nz=NZ, q_shared_trunk=False, q_nh_rnn=8, q_nh_mlp=(16,))
     q = mojo.q_model(cfg, T_PRED, K)
@@ -232,6 +237,7 @@ def test_unshared_band_networks_have_one_network_per_band():
     assert z.shape == (2, K, q.n_low, NZ)
 
 
+@pytest.mark.slow
 def test_q_loss_has_dlow_terms_and_gradients_only_for_q(dct_setup):
     cfg, model, params, q, q_params, x, y = dct_setup
     batch = jnp.concatenate([x, y], axis=1)

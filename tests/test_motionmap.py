@@ -160,3 +160,47 @@ def test_predict_modes_shapes_and_select_k():
     modes = mm.predict_modes(ae, ae_p, hm, hm_p, cb, x, PARENTS, min_distance=2, threshold_rel=0.35, max_peaks=7, scale=10.0)
     assert modes.futures.shape == (2, 7, t_pred, dim) and modes.sigma.shape == (2, 7, t_pred, dim // 3)
     assert mm.select_k(modes, 4).shape == (2, 4, t_pred, dim)
+
+
+def test_motionmap_is_registered_and_its_configs_load():
+    from pathlib import Path
+
+    from jaxmotion.config import load_config
+    from jaxmotion.methods import get_method
+
+    m = get_method("motionmap")
+    assert m.reference_futures == "train" and m.config_type is mm.MotionMapConfig
+    root = Path(__file__).parents[1] / "experiments" / "configs"
+    for name in ("motionmap_synthetic.py", "motionmap_bandai.py"):
+        cfg = load_config(root / name)
+        assert cfg.method == "motionmap" and isinstance(cfg.method_config, mm.MotionMapConfig)
+
+
+@pytest.mark.slow
+def test_every_stage_trains_resumes_and_predicts_on_small_synthetic_data(tmp_path):
+    pytest.importorskip("openTSNE")
+    from jaxmotion import experiment
+    from jaxmotion.config import Config
+    from jaxmotion.data.synthetic import make_synthetic
+    from jaxmotion.methods import motionmap as mmm
+    from jaxmotion.train import runner
+
+    ds = make_synthetic(0, num_train_subjects=2, train_sequences=2, train_segments=6, test_sequences=1, test_segments=3)
+    prep = experiment.prepare(ds)
+    c = mm.MotionMapConfig(nh_rnn=32, nh_fuse=32, nh_uncertainty=32, n_uncertainty_layers=2, hm_size=16,
+                           ae_steps=6, hm_steps=6, ft_steps=6, batch_size=8, tsne_fit_points=200)
+    cfg = Config(name="t", method="motionmap", method_config=c, eval_k=(6,), ckpt_every=3, log_every=3)
+    method = experiment.get_method("motionmap")
+    trained = runner.train(method, cfg, prep, tmp_path)
+    assert set(trained) == {"autoencoder", "codebook", "heatmap", "finetune"}
+    restored = runner.restore(method, cfg, prep, tmp_path)
+    np.testing.assert_array_equal(np.asarray(restored["codebook"]["table"]), np.asarray(trained["codebook"]["table"]))
+    # The encoders are not fine-tuned.
+    enc = lambda p: np.asarray(p["params"]["enc_x"]["cell"]["weight_hh"])
+    np.testing.assert_array_equal(enc(trained["finetune"]), enc(trained["autoencoder"]))
+    fns = method.predictors(cfg, ds, trained, 6)
+    out = np.asarray(fns["motionmap"](jnp.asarray(prep.x[:4]), jax.random.key(0)))
+    assert out.shape == (4, 6, ds.t_pred, ds.dim) and np.all(np.isfinite(out))
+    st = mmm.known_mode_statistics(cfg, prep, trained)
+    assert st["true_modes_per_window"] == 6 and st["predicted_modes_mean"] >= 1
+    assert len(mmm.draw_pictures(cfg, prep, trained, tmp_path)) == 2

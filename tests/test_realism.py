@@ -34,6 +34,7 @@ def test_constant_motion_has_zero_entropy_and_negative_fse():
     assert float(realism.fse(const[None], gt)) < 0.0
 
 
+@pytest.mark.slow
 def test_fse_of_the_ground_truth_itself_is_zero():
     gt = np.random.default_rng(1).normal(size=(4, T, 6)).astype(np.float32)
     pred = np.repeat(gt[:, None], 5, axis=1)
@@ -145,6 +146,7 @@ def test_missing_names_are_listed():
         realism.bone_deformation(np.zeros((T, 5)), BANDAI)
 
 
+@pytest.mark.slow
 def test_window_realism_reports_what_the_dataset_supports():
     rng = np.random.default_rng(0)
     names = ("Hips",) + BANDAI
