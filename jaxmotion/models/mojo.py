@@ -155,7 +155,7 @@ def decoder_params(model: MojoCVAE, variables) -> DecoderParams:
     return DecoderParams(variables, model)
 
 
-def decode_inputs(params: DecoderParams, x: Float[ArrayLike, "b t_his d"], z: Float[ArrayLike, "b c z"]):
+def decode_inputs(params: DecoderParams, x: Float[ArrayLike, "b t_his d"], z: Float[ArrayLike, "b *bands z"]):
     """Returns `(carry0, inputs)` for `lax.scan(lambda c, i: decode_step(params, c, i), carry0, inputs)`.
 
     `inputs` are time-major `DecodeInputs` with leading axis `t_pred`; `z` holds the band latents.
