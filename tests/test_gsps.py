@@ -76,6 +76,7 @@ def _knee_flexion(frames: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(np.sum(t * s, -1) / np.linalg.norm(t, axis=-1) / np.linalg.norm(s, axis=-1), -1, 1))
 
 
+@pytest.mark.slow  # trains the prior for 300 steps (~4 s)
 def test_trained_prior_prefers_real_poses_to_knees_bent_backwards():
     train, test = _data()
     prior = gsps.PosePrior(dim=48, n_layers=3)
@@ -225,7 +226,8 @@ def test_generator_loss_is_finite_and_differentiable():
         prior_stride=3, lambda_angle=100.0,
     )
     batch = {"window": jnp.asarray(w), "mm": jnp.asarray(mm), "mm_mask": jnp.asarray(mask, jnp.float32)}
-    (loss, (m, stats)), g = jax.value_and_grad(loss_fn, has_aux=True)(v, batch=batch, key=jax.random.key(0))
+    grad_fn = jax.jit(jax.value_and_grad(lambda v, b, k: loss_fn(v, batch=b, key=k), has_aux=True))
+    (loss, (m, stats)), g = grad_fn(v, batch, jax.random.key(0))
     assert np.isfinite(float(loss)) and all(np.isfinite(float(x)) for x in m.values())
     assert all(bool(jnp.all(jnp.isfinite(x))) for x in jax.tree.leaves(g["params"]))
     assert 0 < float(m["div_first"]) <= 1 and 0 < float(m["div_rest"]) <= 1

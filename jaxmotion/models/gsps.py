@@ -54,6 +54,7 @@ from jaxmotion.models.divsamp import bone_lengths, condition_nodes, from_nodes
 from jaxmotion.nn.gcn import GCLStack, GraphConv
 
 PART_SPLITS = ("lower_upper", "five")
+PART_NAMES = {"lower_upper": ("lower", "upper"), "five": ("torso", "right_leg", "left_leg", "right_arm", "left_arm")}
 
 
 @dataclasses.dataclass
