@@ -28,7 +28,8 @@ def view_axes(joints: np.ndarray) -> tuple[int, int, int]:
     return up, across, depth
 
 
-def _draw(ax, pose, parents, h, v, dx=0.0, **kw):
+def draw_pose(ax, pose, parents, h, v, dx=0.0, **kw):
+    """Draws the bones of `pose (J, 3)` on `ax`, projected on the axes `h`, `v` and shifted by `dx`."""
     for j, p in enumerate(parents):
         if p >= 0:
             ax.plot([pose[p, h] + dx, pose[j, h] + dx], [pose[p, v], pose[j, v]], **kw)
@@ -65,10 +66,10 @@ def plot_futures(
         return pose - np.where(np.arange(3) == across, pose[:, across].mean(), 0.0)
 
     ax = fig.add_subplot(gs[0, :])
-    _draw(ax, centred(gj[-1]), parents, across, up, color="k", lw=2)
+    draw_pose(ax, centred(gj[-1]), parents, across, up, color="k", lw=2)
     ax.text(0, np.max(gj[-1, :, up]) + 0.12, "truth", ha="center", fontsize=8)
     for i in range(min(n_end, k)):
-        _draw(ax, centred(pj[i, -1]), parents, across, up, dx=(i + 1.3) * step, color=colors[i], lw=2)
+        draw_pose(ax, centred(pj[i, -1]), parents, across, up, dx=(i + 1.3) * step, color=colors[i], lw=2)
         ax.text((i + 1.3) * step, np.max(gj[-1, :, up]) + 0.12, f"sample {i}", ha="center", fontsize=8)
     ax.set_title(f"end poses (frame +{t_pred}) of the true future and of {min(n_end, k)} of the {k} samples", fontsize=9)
     ax.set_aspect("equal")
@@ -76,10 +77,10 @@ def plot_futures(
 
     for col, (h, name) in enumerate([(across, "front"), (depth, "side")]):
         ax = fig.add_subplot(gs[1, col])
-        _draw(ax, xj[-1], parents, h, up, color="0.6", lw=3)
+        draw_pose(ax, xj[-1], parents, h, up, color="0.6", lw=3)
         for i in range(k):
-            _draw(ax, pj[i, -1], parents, h, up, color=colors[i], lw=1, alpha=0.5)
-        _draw(ax, gj[-1], parents, h, up, color="k", lw=2, ls="--")
+            draw_pose(ax, pj[i, -1], parents, h, up, color=colors[i], lw=1, alpha=0.5)
+        draw_pose(ax, gj[-1], parents, h, up, color="k", lw=2, ls="--")
         ax.set_title(f"all {k} end poses ({name}); grey: last observed, dashed: truth", fontsize=9)
         ax.set_aspect("equal")
         ax.axis("off")
@@ -96,9 +97,9 @@ def plot_futures(
     strips = [("truth", gj, "k")] + [(f"sample {i}", pj[i], colors[i]) for i in range(min(n_rows, k))]
     for r, (name, seq, color) in enumerate(strips):
         ax = fig.add_subplot(gs[r + 2, :])
-        _draw(ax, xj[-1], parents, across, up, dx=-step, color="0.6", lw=2)
+        draw_pose(ax, xj[-1], parents, across, up, dx=-step, color="0.6", lw=2)
         for c, t in enumerate(times):
-            _draw(ax, seq[t], parents, across, up, dx=c * step, color=color, lw=2)
+            draw_pose(ax, seq[t], parents, across, up, dx=c * step, color=color, lw=2)
             if r == 0:
                 ax.text(c * step, np.max(gj[..., up]) + 0.12, f"+{t + 1} fr", ha="center", fontsize=8)
         ax.text(-step, np.max(gj[..., up]) + 0.12, "last observed", ha="center", fontsize=8)

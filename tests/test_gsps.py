@@ -257,7 +257,6 @@ def test_method_is_registered_with_its_stages_in_order():
 
 @pytest.mark.slow
 def test_tiny_run_trains_samples_any_k_and_fixes_the_lower_body(tmp_path):
-    import dataclasses
 
     from jaxmotion import experiment
     from jaxmotion.config import Config

@@ -20,8 +20,6 @@ training windows (`reference_futures="train"`, MotionMap Tables 1-2).
 
 from __future__ import annotations
 
-import functools
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -210,6 +208,130 @@ def predictors(cfg, ds, params: dict, k: int) -> dict:
         "zero_velocity": zero_velocity(ds.t_pred, k),
         "motionmap": jax.jit(lambda x, key: mm.select_k(modes(x), k)),
     }
+
+
+def known_mode_statistics(cfg, prep, params: dict, threshold: float | None = None, batch: int = 64) -> dict:
+    """Returns how MotionMap's variable set of modes matches a dataset's known modes (the synthetic data's `known_modes`).
+
+    Test windows whose decision point is at most `cfg.mode_max_boundary` frames away (where the
+    modes are distinct) are used. Per window: the number of predicted modes (vs the true number);
+    each predicted mode is assigned to its nearest true mode and reaches it when their ADE term is
+    below `threshold` (default `cfg.mode_threshold`); a true mode's confidence is the largest among
+    the predicted modes that reach it (0 if none). Reported: mode counts, recall over all peaks,
+    the per-window Spearman correlation of true-mode confidence with the true mode probabilities
+    (windows where it is defined), and the Spearman correlation over the 6 modes of the confidence
+    averaged over windows.
+    """
+    from scipy.stats import spearmanr
+
+    ds = prep.dataset
+    if ds.known_modes is None:
+        raise ValueError(f"known_mode_statistics: dataset {ds.name!r} does not know its modes")
+    km = ds.known_modes(ds)
+    keep = prep.keep
+    sel = km.boundary[keep] <= cfg.mode_max_boundary
+    true_modes, x = km.modes[keep][sel], prep.x[sel]
+    probs = np.asarray(km.probs)
+    thr = cfg.mode_threshold if threshold is None else threshold
+    fn = modes_fn(cfg, ds, params)
+    n_pred, conf_true = [], []
+    for s in range(0, len(x), batch):
+        xb = x[s : s + batch]
+        pad = batch - len(xb)
+        out = fn(jnp.asarray(np.concatenate([xb, np.repeat(xb[-1:], pad, 0)]) if pad else xb))
+        fut, conf, valid = (np.asarray(a)[: len(xb)] for a in (out.futures, out.confidence, out.valid))
+        for f, cf, v, tm in zip(fut, conf, valid, true_modes[s : s + batch]):
+            f, cf = f[v], cf[v]
+            n_pred.append(len(f))
+            d = np.linalg.norm(f[:, None] - tm[None], axis=-1).mean(-1)  # (peaks, modes)
+            ct = np.zeros(len(tm))
+            for i, j in enumerate(d.argmin(1)):
+                if d[i, j] < thr:
+                    ct[j] = max(ct[j], cf[i])
+            conf_true.append(ct)
+    n_pred, conf_true = np.asarray(n_pred), np.stack(conf_true)
+    rhos = [spearmanr(c, probs).statistic for c in conf_true if np.ptp(c) > 0]
+    return {
+        "windows": int(len(x)),
+        "true_modes_per_window": int(true_modes.shape[1]),
+        "predicted_modes_mean": float(n_pred.mean()),
+        "predicted_modes_median": float(np.median(n_pred)),
+        "predicted_modes_hist": np.bincount(n_pred).tolist(),
+        "recall_all_peaks": float((conf_true > 0).mean()),
+        "recall_all_peaks_weighted": float(((conf_true > 0) * probs).sum(1).mean() / probs.sum()),
+        "spearman_per_window_mean": float(np.mean(rhos)) if rhos else float("nan"),
+        "spearman_windows": int(len(rhos)),
+        "mean_confidence_per_mode": conf_true.mean(0).tolist(),
+        "spearman_mean_confidence": float(spearmanr(conf_true.mean(0), probs).statistic),
+    }
+
+
+def draw_pictures(cfg, prep, params: dict, workdir, i: int = 0) -> list:
+    """Writes MotionMap's two pictures for test window `i` and returns their paths (paper Fig. 5 and 6).
+
+    `motionmap_maps.png`: the predicted map with its peaks numbered by rank, beside the ground-truth
+    map (Gaussian bumps at the cells of the window's MotionMap multimodal futures among the
+    training windows). `motionmap_modes.png`: the decoded modes' end poses ranked by confidence,
+    each joint's marker size its predicted uncertainty (sigma) at the last frame.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from jaxmotion.viz import draw_pose, frames_to_joints, view_axes
+
+    from pathlib import Path
+
+    ds, c = prep.dataset, settings(cfg)
+    workdir = Path(workdir)
+    cb = params["codebook"]
+    pool = Pool(prep, c)
+    x = prep.x[i : i + 1]
+    out = modes_fn(cfg, ds, params)(jnp.asarray(x))
+    heat, cells, conf, valid = (np.asarray(a)[0] for a in (out.heatmap, out.cells, out.confidence, out.valid))
+    f = c.descriptor_frames
+    sets = mm.motionmap_mm_sets(x[:, -f:], pool.thr, pool.parents, reference_desc=pool.x[:, -f:])
+    members = np.asarray(sets.idx)[0, np.asarray(sets.mask)[0]]
+    gt_cells = np.asarray(cb["cells"])[members].astype(np.float32)
+    gt = np.asarray(mm.gaussian_heatmap(jnp.asarray(gt_cells.reshape(-1, 2)), jnp.ones(len(gt_cells), bool), c.hm_size, c.hm_sigma))
+    fig, axs = plt.subplots(1, 2, figsize=(10, 5))
+    axs[0].imshow(heat, cmap="magma")
+    for r, (cell, ok) in enumerate(zip(cells, valid)):
+        if ok:
+            axs[0].plot(cell[1], cell[0], "c+", ms=10)
+            axs[0].text(cell[1] + 1, cell[0] - 1, str(r + 1), color="c", fontsize=8)
+    axs[0].set_title(f"predicted map, {int(valid.sum())} peaks (numbered by confidence)", fontsize=9)
+    axs[1].imshow(gt, cmap="magma")
+    axs[1].set_title(f"ground truth: {len(members)} multimodal training futures", fontsize=9)
+    for a in axs:
+        a.axis("off")
+    paths = [workdir / "motionmap_maps.png"]
+    fig.savefig(paths[0], dpi=120, bbox_inches="tight")
+    plt.close(fig)
+
+    n = int(valid.sum())
+    fut, sig = np.asarray(out.futures)[0, :n], np.asarray(out.sigma)[0, :n]
+    xj, pj = frames_to_joints(x[0]), frames_to_joints(fut)
+    up, across, _ = view_axes(xj)
+    parents = ds.skeleton.parents
+    fig, ax = plt.subplots(figsize=(2 + 1.6 * max(n, 1), 3.5))
+    step = 1.3 * np.ptp(xj[..., across]) + 0.5
+    draw_pose(ax, xj[-1], parents, across, up, color="0.6", lw=2)
+    ax.text(0, xj[-1, :, up].max() + 0.1, "last observed", ha="center", fontsize=8)
+    for r in range(n):
+        dx = (r + 1) * step
+        draw_pose(ax, pj[r, -1], parents, across, up, dx=dx, color=plt.cm.viridis(r / max(n, 1)), lw=2)
+        s_last = np.concatenate([[0.0], sig[r, -1]])  # the root has no uncertainty
+        ax.scatter(pj[r, -1, :, across] + dx, pj[r, -1, :, up], s=2000 * s_last**2 + 2, alpha=0.3, color="r")
+        ax.text(dx, xj[-1, :, up].max() + 0.1, f"#{r + 1} conf {conf[r]:.2f}", ha="center", fontsize=8)
+    ax.set_aspect("equal")
+    ax.axis("off")
+    ax.set_title(f"{ds.name} test window {i}: modes ranked by confidence, end poses; red: sigma per joint", fontsize=9)
+    paths.append(workdir / "motionmap_modes.png")
+    fig.savefig(paths[1], dpi=120, bbox_inches="tight")
+    plt.close(fig)
+    return paths
 
 
 METHOD = Method(

@@ -290,7 +290,7 @@ def gaussian_heatmap(
     u = jnp.arange(size, dtype=jnp.float32)
     d2 = (u[None, :, None] - cells[:, 0, None, None]) ** 2 + (u[None, None, :] - cells[:, 1, None, None]) ** 2
     bumps = jnp.exp(-d2 / (2 * sigma**2))
-    return jnp.max(jnp.where(mask[:, None, None], bumps, 0.0), axis=0)
+    return jnp.max(jnp.where(mask[:, None, None], bumps, 0.0), axis=0, initial=0.0)  # no cell: an empty map
 
 
 class Peaks(NamedTuple):
