@@ -6,7 +6,7 @@ import functools
 
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Float
 
 
 @functools.lru_cache(maxsize=64)
@@ -33,11 +33,11 @@ def dct_matrix(n: int, n_dct: int | None = None) -> Float[Array, "c n"]:
     return jnp.asarray(_dct_matrix_np(n)[:n_dct], dtype=jnp.float32)
 
 
-def dct(x: Float[Array, "... t d"], n_dct: int | None = None) -> Float[Array, "... c d"]:
+def dct(x: Float[ArrayLike, "... t d"], n_dct: int | None = None) -> Float[Array, "... c d"]:
     """Returns the first `n_dct` DCT-II coefficients of `x` along time (axis -2)."""
     return jnp.einsum("ct,...td->...cd", dct_matrix(x.shape[-2], n_dct), x)
 
 
-def idct(c: Float[Array, "... c d"], n: int) -> Float[Array, "... t d"]:
+def idct(c: Float[ArrayLike, "... c d"], n: int) -> Float[Array, "... t d"]:
     """Returns the `n`-frame signal whose first DCT-II coefficients are `c` (the rest zero)."""
     return jnp.einsum("ct,...cd->...td", dct_matrix(n, c.shape[-2]), c)

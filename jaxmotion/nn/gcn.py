@@ -18,7 +18,7 @@ from __future__ import annotations
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Float
 
 
 def _uniform(bound: float):
@@ -32,7 +32,7 @@ class GraphConv(nn.Module):
     use_bias: bool = True
 
     @nn.compact
-    def __call__(self, h: Float[Array, "... j f"]) -> Float[Array, "... j o"]:
+    def __call__(self, h: Float[ArrayLike, "... j f"]) -> Float[Array, "... j o"]:
         j, f_in = h.shape[-2:]
         init = _uniform(1.0 / float(self.features) ** 0.5)
         w = self.param("kernel", init, (f_in, self.features))
@@ -53,7 +53,7 @@ class GCLBlock(nn.Module):
     features: int
 
     @nn.compact
-    def __call__(self, h: Float[Array, "... j f"], *, train: bool) -> Float[Array, "... j o"]:
+    def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool) -> Float[Array, "... j o"]:
         x = GraphConv(self.features, name="gc")(h)
         shape = x.shape
         x = x.reshape(shape[:-2] + (shape[-2] * shape[-1],))
@@ -67,7 +67,7 @@ class ResidualGCLBlock(nn.Module):
     features: int
 
     @nn.compact
-    def __call__(self, h: Float[Array, "... j f"], *, train: bool) -> Float[Array, "... j f"]:
+    def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool) -> Float[Array, "... j f"]:
         x = GCLBlock(h.shape[-1], name="gcl_0")(h, train=train)
         x = GCLBlock(self.features, name="gcl_1")(x, train=train)
         return x + h
@@ -85,7 +85,7 @@ class GCLStack(nn.Module):
     num_residual: int
 
     @nn.compact
-    def __call__(self, h: Float[Array, "... j f"], *, train: bool) -> Float[Array, "... j o"]:
+    def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool) -> Float[Array, "... j o"]:
         h = GCLBlock(self.features, name="gcl_in")(h, train=train)
         for i in range(self.num_residual):
             h = ResidualGCLBlock(self.features, name=f"res_{i}")(h, train=train)

@@ -10,11 +10,11 @@ from __future__ import annotations
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Float
 
 
 def gru_update(
-    gi: Float[Array, "b g"], gh: Float[Array, "b g"], h: Float[Array, "b h"]
+    gi: Float[ArrayLike, "b g"], gh: Float[ArrayLike, "b g"], h: Float[ArrayLike, "b h"]
 ) -> Float[Array, "b h"]:
     """Returns `h'` from the input gates `gi = W_i x + b_i` and hidden gates `gh = W_h h + b_h` (PyTorch GRUCell).
 
@@ -43,7 +43,7 @@ class GRUCell(nn.Module):
     features: int
 
     @nn.compact
-    def __call__(self, h: Float[Array, "b h"], x: Float[Array, "b i"]) -> Float[Array, "b h"]:
+    def __call__(self, h: Float[ArrayLike, "b h"], x: Float[ArrayLike, "b i"]) -> Float[Array, "b h"]:
         f = self.features
         bound = 1.0 / jnp.sqrt(f)
         init = lambda shape: (lambda key, s=shape: jax.random.uniform(key, s, jnp.float32, -bound, bound))
@@ -60,7 +60,7 @@ class GRU(nn.Module):
     features: int
 
     @nn.compact
-    def __call__(self, x: Float[Array, "b t i"], h0: Float[Array, "b h"] | None = None) -> Float[Array, "b t h"]:
+    def __call__(self, x: Float[ArrayLike, "b t i"], h0: Float[ArrayLike, "b h"] | None = None) -> Float[Array, "b t h"]:
         if h0 is None:
             h0 = jnp.zeros(x.shape[:-2] + (self.features,), x.dtype)
 

@@ -16,7 +16,7 @@ import math
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Float
 
 DENSE_INITS = ("torch", "flax")
 
@@ -34,7 +34,7 @@ class Dense(nn.Module):
     rule: str = "flax"
 
     @nn.compact
-    def __call__(self, x: Float[Array, "... i"]) -> Float[Array, "... o"]:
+    def __call__(self, x: Float[ArrayLike, "... i"]) -> Float[Array, "... o"]:
         fan_in = x.shape[-1]
         if self.rule == "torch":
             k_init = b_init = torch_uniform(fan_in)

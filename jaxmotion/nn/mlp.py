@@ -5,7 +5,7 @@ from __future__ import annotations
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Float
 
 from jaxmotion.nn.linear import Dense
 
@@ -18,7 +18,7 @@ class MLP(nn.Module):
     dense_init: str = "flax"  # "torch" (PyTorch nn.Linear) or "flax" (nn.Dense); see nn/linear.py
 
     @nn.compact
-    def __call__(self, x: Float[Array, "... i"]) -> Float[Array, "... o"]:
+    def __call__(self, x: Float[ArrayLike, "... i"]) -> Float[Array, "... o"]:
         act = getattr(jax.nn, self.activation) if self.activation != "tanh" else jnp.tanh
         for i, f in enumerate(self.features):
             x = act(Dense(f, rule=self.dense_init, name=f"dense_{i}")(x))
