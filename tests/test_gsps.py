@@ -27,6 +27,7 @@ def _prior(dim=48, seed=0):
     return prior, prior.init(jax.random.key(seed), jnp.zeros((1, dim)))
 
 
+@pytest.mark.slow
 def test_prior_inverse_inverts():
     prior, params = _prior()
     d = jax.random.normal(jax.random.key(1), (64, 48))
@@ -36,6 +37,7 @@ def test_prior_inverse_inverts():
     assert float(jnp.mean(z < 0)) > 0.2  # the PReLU's negative branch was exercised
 
 
+@pytest.mark.slow
 def test_prior_logdet_equals_slogdet_of_jacobian():
     prior, params = _prior(dim=12)
     for i in range(4):
@@ -126,6 +128,7 @@ def test_angle_roles_from_names_of_every_skeleton():
         gsps.angle_roles(("Hips", "Head"), (-1, 0))
 
 
+@pytest.mark.slow
 def test_measured_bounds_hold_real_poses_and_reject_backward_knees():
     train, test = _data()
     bounds = gsps.measure_angle_bounds(train[::5], ROLES, 0.1, margin=0.05)
@@ -166,6 +169,7 @@ def _gen(parts=PARTS, hidden=16):
     return gen, v
 
 
+@pytest.mark.slow
 def test_later_parts_never_change_earlier_parts_so_the_lower_body_can_be_fixed():
     train, _ = _data()
     gen, v = _gen()
@@ -211,6 +215,7 @@ def test_pseudo_futures_follow_the_release_thresholds():
         assert not fut[i][~mask[i]].any()
 
 
+@pytest.mark.slow
 def test_generator_loss_is_finite_and_differentiable():
     train, _ = _data()
     gen, v = _gen()

@@ -96,11 +96,13 @@ def test_every_dense_layer_follows_the_chosen_rule(build, init):
 
 
 @pytest.mark.parametrize("build", [_dlow_params, _mojo_params], ids=["dlow", "mojo"])
+@pytest.mark.slow
 def test_grus_follow_pytorch(build):
     for params in build("torch"):
         _gru_ok(params)
 
 
+@pytest.mark.slow
 def test_divsamp_graph_convolutions_follow_the_release():
     cv, sv = _divsamp_params("torch")
     convs = [(p, t) for p, t in _walk(cv) if "adjacency" in t]

@@ -149,6 +149,7 @@ def test_tsne_embed_separates_clusters():
     assert between > 3 * within
 
 
+@pytest.mark.slow
 def test_predict_modes_shapes_and_select_k():
     dim, t_his, t_pred, size = 48, 15, 10, 16
     c = mm.MotionMapConfig(nh_rnn=16, nh_fuse=16, nh_uncertainty=16, n_uncertainty_layers=2, hm_size=size)
