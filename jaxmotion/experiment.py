@@ -152,7 +152,13 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
         sel = prep.keep
         modes = modes._replace(modes=modes.modes[sel], true_mode=modes.true_mode[sel], boundary=modes.boundary[sel])
     x, y = prep.x, prep.y
-    mm_sets, ref_futures = reference_sets(method, prep)
+    if cfg.mm_deviation == "divsamp":
+        # DivSamp's deviation drops exact-duplicate last poses, so evaluate_windows builds its sets from the poses.
+        if method.reference_futures != "test":
+            raise ValueError(f"mm_deviation='divsamp' needs test-window reference futures; method {method.name!r} uses training windows")
+        mm, thr, ref_futures = x[:, -1], ds.mm_threshold, None
+    else:
+        (mm, ref_futures), thr = reference_sets(method, prep), None
     records = []
     extra_fn = method.extra_metrics
     for k in cfg.eval_k:
@@ -173,10 +179,8 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
                         extras.append(extra_fn(ds, p, y[i * cfg.eval_batch : i * cfg.eval_batch + p.shape[0]]))
                     yield p
 
-            # DivSamp's deviation drops exact-duplicate last poses, so it builds its sets from the poses.
-            mm = (x[:, -1], ds.mm_threshold) if cfg.mm_deviation == "divsamp" else (mm_sets, None)
             m = metrics.evaluate_windows(
-                chunks(), y, mm[0], thr=mm[1], reference_futures=ref_futures, mm_deviation=cfg.mm_deviation
+                chunks(), y, mm, thr=thr, reference_futures=ref_futures, mm_deviation=cfg.mm_deviation
             )
             m.pop("n_windows")  # a top-level field of the record (PROTOCOL sec. 5)
             if modes is not None:

@@ -18,10 +18,6 @@ from jaxmotion.models import dlow
 from jaxmotion.models.dlow import DLowConfig
 
 
-def _cvae(cfg, ds) -> dlow.DLowCVAE:
-    return dlow.cvae_model(METHOD.settings(cfg).cvae, ds.dim, ds.t_pred)
-
-
 def stages(cfg, prep) -> list[Stage]:
     """Returns DLow's stages: the CVAE, then a Q network per K of `cfg.eval_k`."""
     ds, c = prep.dataset, METHOD.settings(cfg)
@@ -63,7 +59,7 @@ def stages(cfg, prep) -> list[Stage]:
 def predictors(cfg, ds, params: dict, k: int) -> dict:
     """Returns jitted `(x, key) -> (b, K, t_pred, D)` samplers for zero-velocity, CVAE and (for a trained K) DLow."""
     c = METHOD.settings(cfg)
-    cvae = _cvae(cfg, ds)
+    cvae = dlow.cvae_model(c.cvae, ds.dim, ds.t_pred)
     out = {
         "zero_velocity": zero_velocity(ds.t_pred, k),
         "cvae": jax.jit(lambda x, key: dlow.sample_prior(cvae, params["cvae"], x, key, k)),
