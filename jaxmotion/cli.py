@@ -29,6 +29,7 @@ def _parser() -> argparse.ArgumentParser:
         s.add_argument("--config", default=None, help="Python config file defining get_config() (default: built-in synthetic job)")
         s.add_argument("--data", default=None, help="'synthetic', a BVH folder, the Bandai-Namco-2 folder, or an H36M/HumanEva .npz")
         s.add_argument("--workdir", default=None, help="output directory (default: runs/<config name>)")
+        s.add_argument("--seed", type=int, default=None, help="override the config's seed (initialisation, batches, evaluation draws)")
         if name in ("run", "train"):
             s.add_argument("--resume", action="store_true", help="continue from the latest checkpoints in --workdir")
         if name == "sample":
@@ -55,7 +56,12 @@ def main(argv: list[str] | None = None) -> int:
     from jaxmotion import experiment
     from jaxmotion.config import load_config
 
-    cfg = experiment.resolve(load_config(args.config))
+    cfg = load_config(args.config)
+    if args.seed is not None:
+        import dataclasses
+
+        cfg = dataclasses.replace(cfg, seed=args.seed)
+    cfg = experiment.resolve(cfg)
     workdir = Path(args.workdir or Path("runs") / cfg.name).absolute()
     t0 = time.perf_counter()
     ds = experiment.load_data(cfg, args.data)

@@ -221,8 +221,8 @@ def test_test_time_noise_shared_or_independent(models):
     x = _x(b=2, t=T_HIS, seed=9)
     key = jax.random.key(4)
     cx = divsamp.condition_nodes(x, T_PRED, NDCT)
-    shared = divsamp.sample_divsamp(cvae, cv, sampler, sv, x, key, 6, t_pred=T_PRED)
-    indep = divsamp.sample_divsamp(cvae, cv, sampler, sv, x, key, 6, t_pred=T_PRED, test_eps="independent")
+    shared = divsamp.sample_divsamp(cvae, cv, sampler, sv, x, key, 6, t_pred=T_PRED, test_eps="shared")
+    indep = divsamp.sample_divsamp(cvae, cv, sampler, sv, x, key, 6, t_pred=T_PRED)  # the default: the release's
     assert shared.shape == indep.shape == (2, 6, T_PRED, x.shape[-1])
     # The same points and Gaussians, different noise: z_k - mean_k is one vector scaled per k when shared.
     z_s, mean, logvar = sampler.apply(sv, cx, key, 6, train=False)

@@ -45,9 +45,9 @@ def test_batchnorm_train_mode_normalises_and_updates_running_averages():
     np.testing.assert_allclose(pre.mean(0), 0.0, atol=1e-3)
     np.testing.assert_allclose(pre.var(0), 1.0, atol=2e-2)
     gc = GraphConv(3).apply({"params": v["params"]["gc"]}, h).reshape(64, -1)
-    # PyTorch momentum 0.1: running = 0.9 * running + 0.1 * batch statistic.
+    # PyTorch momentum 0.1: running = 0.9 * running + 0.1 * batch statistic; the variance unbiased, as PyTorch keeps it.
     np.testing.assert_allclose(np.asarray(upd["batch_stats"]["bn"]["mean"]), 0.1 * np.asarray(gc.mean(0)), atol=1e-5)
-    np.testing.assert_allclose(np.asarray(upd["batch_stats"]["bn"]["var"]), 0.9 + 0.1 * np.asarray(gc.var(0)), rtol=1e-3)
+    np.testing.assert_allclose(np.asarray(upd["batch_stats"]["bn"]["var"]), 0.9 + 0.1 * np.asarray(gc).var(0, ddof=1), rtol=1e-3)
 
 
 def test_eval_mode_uses_running_averages_so_samples_are_independent():

@@ -145,3 +145,64 @@ def test_torch_rule_matches_a_fresh_pytorch_linear():
     assert np.std(w) == pytest.approx(np.std(tw), rel=0.05)
     assert np.std(b) == pytest.approx(np.std(tb), rel=0.3)
     assert np.abs(b).max() == pytest.approx(np.abs(tb).max(), rel=0.05)
+
+
+def _motionmap_params(init):
+    from jaxmotion.models import motionmap as mm
+
+    c = mm.MotionMapConfig(nh_rnn=32, nh_fuse=64, nh_uncertainty=64, n_uncertainty_layers=2, hm_size=16, dense_init=init)
+    ae, hm = mm.ae_model(c, D, T_HIS, T_PRED), mm.heatmap_model(c)
+    x, y = jnp.zeros((2, T_HIS, D)), jnp.zeros((2, T_PRED, D))
+    return ae.init(jax.random.key(0), x, y)["params"], hm.init(jax.random.key(1), x)["params"]
+
+
+def _gsps_params():
+    from jaxmotion.models import gsps
+
+    gen = gsps.GSPSGenerator(parts=((0, 1), (2, 3)), hidden=32, num_stage=1)
+    nodes, z = jnp.zeros((2, 4, 30)), jnp.zeros((2, 2, 8))
+    return gen.init(jax.random.key(0), nodes, z, train=False)["params"]
+
+
+@pytest.mark.parametrize("init", ["torch", "flax"])
+@pytest.mark.slow
+def test_motionmap_dense_and_conv_layers_follow_the_chosen_rule(init):
+    ae, hm = _motionmap_params(init)
+    _check_dense(_dense_layers(ae), init)
+    _check_dense(_dense_layers(hm), init)
+    convs = [(p, t) for p, t in _walk(hm) if "kernel" in t and np.ndim(t["kernel"]) == 4]
+    assert len(convs) == 7
+    for path, t in convs:
+        w, b = np.asarray(t["kernel"]), np.asarray(t["bias"])
+        bound = 1.0 / math.sqrt(w.shape[2])  # 1x1: fan_in = input channels (PyTorch nn.Conv2d)
+        if init == "torch":
+            assert np.abs(w).max() <= bound and np.abs(b).max() <= bound and np.any(b != 0), path
+        else:
+            assert np.all(b == 0), path
+    _gru_ok(ae)
+
+
+@pytest.mark.slow
+def test_gsps_graph_convolutions_follow_the_release():
+    convs = [(p, t) for p, t in _walk(_gsps_params()) if "adjacency" in t]
+    assert len(convs) == 2 * 4  # per part: gcl_in, two in the residual pair, out
+    for path, t in convs:
+        bound = 1.0 / math.sqrt(t["kernel"].shape[1])
+        for name in ("kernel", "adjacency", "bias"):
+            a = np.asarray(t[name])
+            assert np.abs(a).max() <= bound, (path, name)
+            assert np.std(a) == pytest.approx(bound / math.sqrt(3), rel=0.35), (path, name)
+
+
+def test_defaults_are_the_references():
+    from jaxmotion.models import gsps, motionmap
+
+    assert dlow.CVAEConfig().dense_init == dlow.QConfig().dense_init == "torch"
+    assert mojo.MojoConfig().dense_init == "torch"
+    d = divsamp.DivSampConfig()
+    assert (d.dense_init, d.test_eps, d.bn_running_var) == ("torch", "independent", "unbiased")
+    assert gsps.GSPSConfig().bn_running_var == "unbiased"
+    assert motionmap.MotionMapConfig().dense_init == "torch"
+    assert Dense(3).rule == "torch"
+    with pytest.raises(ValueError, match="MotionMapConfig.dense_init"):
+        motionmap.MotionMapConfig(dense_init="xavier")

@@ -37,7 +37,7 @@ def _skeleton(ds, c: GSPSConfig):
 def _models(ds, c: GSPSConfig):
     parents, roles, parts = _skeleton(ds, c)
     prior = gsps.PosePrior(dim=ds.dim, n_layers=c.prior_layers)
-    gen = gsps.GSPSGenerator(parts=parts, hidden=c.hidden, num_stage=c.num_stage)
+    gen = gsps.GSPSGenerator(parts=parts, hidden=c.hidden, num_stage=c.num_stage, bn_running_var=c.bn_running_var)
     return prior, gen, parents, roles, parts
 
 

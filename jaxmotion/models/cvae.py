@@ -76,7 +76,7 @@ class GRUCVAE(nn.Module):
     residual: bool = False
     # Dense layers' initialisation: "torch" (the references' nn.Linear) or "flax" (nn.Dense). GRUs
     # always follow PyTorch's rule (nn/gru.py).
-    dense_init: str = "flax"
+    dense_init: str = "torch"
 
     @property
     def latent_shape(self) -> tuple[int, ...]:

@@ -40,6 +40,7 @@ from jaxmotion.gumbel import COEFFICIENT_KINDS, sample_coefficients
 from jaxmotion.losses import dlow_diversity, hinge_diversity, kld_normal
 from jaxmotion.models.cvae import reparameterise, vmap_k
 from jaxmotion.nn.gcn import GCLStack, GraphConv
+from jaxmotion.nn.batchnorm import RUNNING_VARS, BatchNorm
 from jaxmotion.nn.linear import DENSE_INITS, Dense
 
 PI_KINDS = ("uniform", "learned_shared", "learned_per_sample")
@@ -82,14 +83,16 @@ class DivSampConfig:
     coefficients: str = "gumbel"  # "gumbel" | "uniform" | "gaussian" (ablation, Table 5)
     pi: str = "uniform"  # "uniform" (1/M) | "learned_shared" | "learned_per_sample"
     tau: float = 1.0  # the paper's temperature; the released configs use 0.85
-    # Dense layers' initialisation (encoder heads, bases, N_gamma): "torch" is the release's
-    # nn.Linear; "flax" (nn.Dense) is what the measured tables were trained with (issue 11: "torch"
-    # becomes the default once they are re-measured). The graph convolutions follow the release always.
-    dense_init: str = "flax"
-    # Test-time noise: "shared" (one eps per window for its K latents, as in training) or
-    # "independent" (K draws: the release's evaluation). "shared" is what the measured tables used;
-    # issue 11 makes "independent" the default once they are re-measured.
-    test_eps: str = "shared"
+    # Dense layers' initialisation (encoder heads, bases, N_gamma): "torch" (default) is the
+    # release's nn.Linear; "flax" (nn.Dense) is what the tables before issue 11 were trained with.
+    # The graph convolutions follow the release always.
+    dense_init: str = "torch"
+    # Test-time noise: "independent" (default: K draws per window, the release's evaluation) or
+    # "shared" (one eps per window for its K latents, as in training; the tables before issue 11).
+    test_eps: str = "independent"
+    # BatchNorm running variance kept for evaluation: "unbiased" (default, PyTorch's, the release's)
+    # or "biased" (flax's; the tables before issue 11). See nn/batchnorm.py.
+    bn_running_var: str = "unbiased"
     # Sampler training (release: lr 1e-3, batch 16, K 50, 1500 epochs of which 100 at constant lr).
     nk: int = 50  # K while training; any K can be drawn afterwards
     lr: float = 1e-3
@@ -127,6 +130,8 @@ def check_config(c: DivSampConfig) -> DivSampConfig:
         raise ValueError(f"DivSampConfig.test_eps must be one of {TEST_EPS_KINDS}, got {c.test_eps!r}")
     if c.dense_init not in DENSE_INITS:
         raise ValueError(f"DivSampConfig.dense_init must be one of {DENSE_INITS}, got {c.dense_init!r}")
+    if c.bn_running_var not in RUNNING_VARS:
+        raise ValueError(f"DivSampConfig.bn_running_var must be one of {RUNNING_VARS}, got {c.bn_running_var!r}")
     return c
 
 
@@ -179,13 +184,14 @@ class DivSampCVAE(nn.Module):
     hidden: int = 256
     nz: int = 64
     num_residual: int = 4
-    dense_init: str = "flax"
+    dense_init: str = "torch"
+    bn_running_var: str = "unbiased"
 
     def setup(self):
-        self.enc = GCLStack(self.hidden, self.num_residual)
+        self.enc = GCLStack(self.hidden, self.num_residual, self.bn_running_var)
         self.e_mu = Dense(self.nz, rule=self.dense_init)
         self.e_logvar = Dense(self.nz, rule=self.dense_init)
-        self.dec = GCLStack(self.hidden, self.num_residual)
+        self.dec = GCLStack(self.hidden, self.num_residual, self.bn_running_var)
         self.d_out = GraphConv(3 * self.n_dct)
 
     def encode(self, cx: Float[ArrayLike, "b j c"], cw: Float[ArrayLike, "b j c"], *, train: bool):
@@ -211,14 +217,15 @@ class GammaHead(nn.Module):
 
     nh: int
     out: int
-    dense_init: str = "flax"
+    dense_init: str = "torch"
+    bn_running_var: str = "unbiased"
 
     @nn.compact
     def __call__(self, p: Float[ArrayLike, "... n"], *, train: bool) -> Float[Array, "... o"]:
         h = Dense(self.nh, rule=self.dense_init, name="dense_0")(p)
         # Statistics over all leading axes, i.e. over the b * K points, like the release's
         # BatchNorm1d on the (b * nk, n_b) matrix.
-        h = nn.BatchNorm(use_running_average=not train, momentum=0.9, epsilon=1e-5, name="bn")(h)
+        h = BatchNorm(not train, 0.9, 1e-5, self.bn_running_var, name="bn")(h)
         return Dense(self.out, rule=self.dense_init, name="dense_1")(jnp.tanh(h))
 
 
@@ -235,7 +242,8 @@ class DivSampSampler(nn.Module):
     coefficients: str = "gumbel"
     pi: str = "uniform"
     tau: float = 1.0
-    dense_init: str = "flax"
+    dense_init: str = "torch"
+    bn_running_var: str = "unbiased"
 
     @nn.compact
     def __call__(self, cx: Float[ArrayLike, "b j c"], key: jax.Array, k: int, *, train: bool, shared_eps: bool = True):
@@ -243,9 +251,9 @@ class DivSampSampler(nn.Module):
         or K independent draws with `shared_eps=False` (the release at test time)."""
         b = cx.shape[0]
         m = self.num_bases
-        h = GCLStack(self.hidden, self.num_residual, name="condition_enc")(cx, train=train).reshape(b, -1)
+        h = GCLStack(self.hidden, self.num_residual, self.bn_running_var, name="condition_enc")(cx, train=train).reshape(b, -1)
         base = Dense(m * self.base_dim, rule=self.dense_init, name="bases")(h)
-        base = nn.BatchNorm(use_running_average=not train, momentum=0.9, epsilon=1e-5, name="bases_bn")(base)
+        base = BatchNorm(not train, 0.9, 1e-5, self.bn_running_var, name="bases_bn")(base)
         if self.base_tanh:
             base = jnp.tanh(base)
         base = base.reshape(b, m, self.base_dim)  # B, one per window (DivSamp Eq. (8))
@@ -264,20 +272,23 @@ class DivSampSampler(nn.Module):
             sample = lambda kk, lg: sample_coefficients(kk, k, m, kind=self.coefficients, tau=self.tau, logits=lg)
         w = jax.vmap(sample)(jax.random.split(k_w, b), logits)  # (b, K, M), rows on the simplex
         p = w @ base  # (b, K, n_b): K points of the auxiliary space (DivSamp Eq. (11))
-        mean = GammaHead(self.nh, self.nz, self.dense_init, name="mean")(p, train=train)
-        logvar = GammaHead(self.nh, self.nz, self.dense_init, name="logvar")(p, train=train)
+        mean = GammaHead(self.nh, self.nz, self.dense_init, self.bn_running_var, name="mean")(p, train=train)
+        logvar = GammaHead(self.nh, self.nz, self.dense_init, self.bn_running_var, name="logvar")(p, train=train)
         eps = jax.random.normal(k_eps, (b, 1 if shared_eps else k, self.nz))
         return jnp.exp(0.5 * logvar) * eps + mean, mean, logvar  # DivSamp Eq. (12)
 
 
 def cvae_from_config(c: DivSampConfig) -> DivSampCVAE:
-    return DivSampCVAE(n_dct=c.n_dct, hidden=c.hidden, nz=c.nz, num_residual=c.cvae_residual, dense_init=c.dense_init)
+    return DivSampCVAE(n_dct=c.n_dct, hidden=c.hidden, nz=c.nz, num_residual=c.cvae_residual, dense_init=c.dense_init,
+        bn_running_var=c.bn_running_var,
+    )
 
 
 def sampler_from_config(c: DivSampConfig) -> DivSampSampler:
     return DivSampSampler(
         nz=c.nz, hidden=c.hidden, num_residual=c.sampler_residual, num_bases=c.num_bases, base_dim=c.base_dim,
         nh=c.nh, base_tanh=c.base_tanh, coefficients=c.coefficients, pi=c.pi, tau=c.tau, dense_init=c.dense_init,
+        bn_running_var=c.bn_running_var,
     )
 
 
@@ -304,12 +315,12 @@ def sample_prior(cvae: DivSampCVAE, variables, x: Float[ArrayLike, "b t_his d"],
 
 def sample_divsamp(
     cvae: DivSampCVAE, cvae_variables, sampler: DivSampSampler, sampler_variables, x: Float[ArrayLike, "b t_his d"], key, k: int,
-    *, t_pred: int, test_eps: str = "shared",
+    *, t_pred: int, test_eps: str = "independent",
 ):
     """Returns DivSamp's K futures `(b, K, t_pred, D)` (Alg. 2): K auxiliary points -> K Gaussians -> K latents -> decoder.
 
-    `test_eps`: "shared" (one eps per window for its K latents, as in training) or "independent"
-    (K draws, what the release's evaluation does).
+    `test_eps`: "independent" (K draws, what the release's evaluation does) or "shared" (one eps
+    per window for its K latents, as in training).
     """
     if test_eps not in TEST_EPS_KINDS:
         raise ValueError(f"sample_divsamp: test_eps must be one of {TEST_EPS_KINDS}, got {test_eps!r}")

@@ -77,6 +77,7 @@ class GSPSConfig:
     n_pre: int = 10  # HumanEva-I: 8
     hidden: int = 256
     num_stage: int = 4
+    bn_running_var: str = "unbiased"  # BatchNorm running variance: PyTorch's (the release), or "biased" (flax's)
     nz: int = 64
     nk1: int = 10  # samples of the first part per window while training
     nk2: int = 10  # samples of the later parts per first-part sample
@@ -475,12 +476,13 @@ class PartGCN(nn.Module):
 
     hidden: int = 256
     num_stage: int = 4
+    bn_running_var: str = "unbiased"  # PyTorch's (the release); "biased" is flax's (nn/batchnorm.py)
 
     @nn.compact
     def __call__(self, h: Float[Array, "b j f"], z: Float[Array, "b z"], *, train: bool) -> Float[Array, "b j f"]:
         zj = jnp.broadcast_to(z[:, None, :], h.shape[:2] + z.shape[-1:])
         x = jnp.concatenate([h, zj], axis=-1)
-        y = GCLStack(self.hidden, self.num_stage, name="gcn")(x, train=train)
+        y = GCLStack(self.hidden, self.num_stage, self.bn_running_var, name="gcn")(x, train=train)
         y = GraphConv(x.shape[-1], name="out")(y) + x
         return y[..., : h.shape[-1]]
 
@@ -491,12 +493,13 @@ class GSPSGenerator(nn.Module):
     parts: tuple[tuple[int, ...], ...]
     hidden: int = 256
     num_stage: int = 4
+    bn_running_var: str = "unbiased"
 
     @nn.compact
     def __call__(self, nodes: Float[Array, "b j f"], z: Float[Array, "b p z"], *, train: bool) -> Float[Array, "b j f"]:
         y = nodes
         for i, part in enumerate(self.parts):
-            out = PartGCN(self.hidden, self.num_stage, name=f"part_{i}")(y, z[:, i], train=train)
+            out = PartGCN(self.hidden, self.num_stage, self.bn_running_var, name=f"part_{i}")(y, z[:, i], train=train)
             idx = np.asarray(part)
             y = y.at[:, idx].set(out[:, idx])
         return y

@@ -90,9 +90,9 @@ class MojoConfig:
     baselines: tuple[str, ...] = ("zero_velocity", "mojo_prior")
     # Recursive projection: Levenberg-Marquardt steps per fitting stage (global, then body) per frame.
     proj_max_steps: int = 10
-    # Dense layers' initialisation (CVAE and Q): "torch" is the release's nn.Linear; "flax" (nn.Dense)
-    # is what the measured tables were trained with (issue 11: "torch" becomes the default once re-measured).
-    dense_init: str = "flax"
+    # Dense layers' initialisation (CVAE and Q): "torch" (default) is the release's nn.Linear;
+    # "flax" (nn.Dense) is what the tables before issue 11 were trained with.
+    dense_init: str = "torch"
 
     def __post_init__(self):
         if self.latent not in ("dct", "vector"):
@@ -190,7 +190,7 @@ class MojoQ(nn.Module):
     nh_rnn: int = 128
     nh_mlp: tuple[int, ...] = (1024, 512)
     shared_trunk: bool = True
-    dense_init: str = "flax"
+    dense_init: str = "torch"
 
     @nn.compact
     def __call__(self, x: Float[ArrayLike, "b t_his d"], eps: Float[ArrayLike, "b l z"]):

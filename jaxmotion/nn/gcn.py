@@ -10,7 +10,8 @@ U(-1/sqrt(F_out), 1/sqrt(F_out))).
 A GCL-BN-Tanh block normalises each of the J * F outputs separately (PyTorch `BatchNorm1d(J * F)`
 on the flattened features, as in the releases), so the BatchNorm statistics live in the
 `batch_stats` collection: apply with `train=True, mutable=["batch_stats"]` while training and
-`train=False` (running averages) to evaluate.
+`train=False` (running averages) to evaluate. The running variance is kept as PyTorch keeps it
+(unbiased) unless `running_var="biased"` (flax's; see nn/batchnorm.py).
 """
 
 from __future__ import annotations
@@ -19,6 +20,8 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
+
+from jaxmotion.nn.batchnorm import BatchNorm
 
 
 def _uniform(bound: float):
@@ -51,13 +54,14 @@ class GCLBlock(nn.Module):
     """
 
     features: int
+    running_var: str = "unbiased"
 
     @nn.compact
     def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool) -> Float[Array, "... j o"]:
         x = GraphConv(self.features, name="gc")(h)
         shape = x.shape
         x = x.reshape(shape[:-2] + (shape[-2] * shape[-1],))
-        x = nn.BatchNorm(use_running_average=not train, momentum=0.9, epsilon=1e-5, name="bn")(x)
+        x = BatchNorm(use_running_average=not train, momentum=0.9, epsilon=1e-5, running_var=self.running_var, name="bn")(x)
         return jnp.tanh(x.reshape(shape))
 
 
@@ -65,11 +69,12 @@ class ResidualGCLBlock(nn.Module):
     """Returns `H + GCL(GCL(H))`: two GCL-BN-Tanh layers with a skip connection (`ResGCB` in the releases)."""
 
     features: int
+    running_var: str = "unbiased"
 
     @nn.compact
     def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool) -> Float[Array, "... j f"]:
-        x = GCLBlock(h.shape[-1], name="gcl_0")(h, train=train)
-        x = GCLBlock(self.features, name="gcl_1")(x, train=train)
+        x = GCLBlock(h.shape[-1], self.running_var, name="gcl_0")(h, train=train)
+        x = GCLBlock(self.features, self.running_var, name="gcl_1")(x, train=train)
         return x + h
 
 
@@ -83,10 +88,11 @@ class GCLStack(nn.Module):
 
     features: int
     num_residual: int
+    running_var: str = "unbiased"
 
     @nn.compact
     def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool) -> Float[Array, "... j o"]:
-        h = GCLBlock(self.features, name="gcl_in")(h, train=train)
+        h = GCLBlock(self.features, self.running_var, name="gcl_in")(h, train=train)
         for i in range(self.num_residual):
-            h = ResidualGCLBlock(self.features, name=f"res_{i}")(h, train=train)
+            h = ResidualGCLBlock(self.features, self.running_var, name=f"res_{i}")(h, train=train)
         return h

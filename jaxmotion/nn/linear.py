@@ -5,8 +5,8 @@ and biases from U(-1/sqrt(fan_in), 1/sqrt(fan_in)) (`kaiming_uniform_(a=sqrt(5))
 the same bound on the bias). flax's `nn.Dense` draws lecun-normal weights, N(0, 1/fan_in) truncated,
 and zero biases: a weight standard deviation sqrt(3) larger. That difference changes what a CVAE
 learns in a short budget (issue 11: DLow's KL at step 50 is 132 nats with flax's rule, 4.7 with
-PyTorch's). `Dense(rule="flax")` is bit-for-bit flax's `nn.Dense` (same parameter names, same
-random draws), so configs written before the option keep their numbers.
+PyTorch's). "torch" is the default; `Dense(rule="flax")` is bit-for-bit flax's `nn.Dense` (same
+parameter names, same random draws), so a config that names it gets the numbers from before issue 11.
 """
 
 from __future__ import annotations
@@ -22,26 +22,31 @@ DENSE_INITS = ("torch", "flax")
 
 
 def torch_uniform(fan_in: int) -> nn.initializers.Initializer:
+    # PyTorch's nn.Conv2d uses the same rule with fan_in = in_channels * prod(kernel size).
     """Returns an initialiser drawing from U(-1/sqrt(fan_in), 1/sqrt(fan_in)) (PyTorch `nn.Linear`, weight and bias)."""
     bound = 1.0 / math.sqrt(fan_in)
     return lambda key, shape, dtype=jnp.float32: jax.random.uniform(key, shape, dtype, -bound, bound)
+
+
+def initializers(rule: str, fan_in: int, what: str = "Dense.rule") -> tuple[nn.initializers.Initializer, nn.initializers.Initializer]:
+    """Returns `(weight_init, bias_init)` of `rule` for a layer with `fan_in` inputs (dense or convolution)."""
+    if rule == "torch":
+        return torch_uniform(fan_in), torch_uniform(fan_in)
+    if rule == "flax":
+        return nn.initializers.lecun_normal(), nn.initializers.zeros_init()
+    raise ValueError(f"{what} must be one of {DENSE_INITS}, got {rule!r}")
 
 
 class Dense(nn.Module):
     """Returns `x @ kernel + bias`, initialised by `rule`: "torch" (PyTorch `nn.Linear`) or "flax" (`nn.Dense`)."""
 
     features: int
-    rule: str = "flax"
+    rule: str = "torch"
 
     @nn.compact
     def __call__(self, x: Float[ArrayLike, "... i"]) -> Float[Array, "... o"]:
         fan_in = x.shape[-1]
-        if self.rule == "torch":
-            k_init = b_init = torch_uniform(fan_in)
-        elif self.rule == "flax":
-            k_init, b_init = nn.initializers.lecun_normal(), nn.initializers.zeros_init()
-        else:
-            raise ValueError(f"Dense.rule must be one of {DENSE_INITS}, got {self.rule!r}")
+        k_init, b_init = initializers(self.rule, fan_in)
         kernel = self.param("kernel", k_init, (fan_in, self.features), jnp.float32)
         bias = self.param("bias", b_init, (self.features,), jnp.float32)
         return jax.lax.dot_general(x, kernel, (((x.ndim - 1,), (0,)), ((), ()))) + bias

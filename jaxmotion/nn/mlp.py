@@ -15,7 +15,7 @@ class MLP(nn.Module):
 
     features: tuple[int, ...]
     activation: str = "tanh"  # any jax.nn name, or "tanh"
-    dense_init: str = "flax"  # "torch" (PyTorch nn.Linear) or "flax" (nn.Dense); see nn/linear.py
+    dense_init: str = "torch"  # "torch" (PyTorch nn.Linear) or "flax" (nn.Dense); see nn/linear.py
 
     @nn.compact
     def __call__(self, x: Float[ArrayLike, "... i"]) -> Float[Array, "... o"]:

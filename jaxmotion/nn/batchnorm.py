@@ -1,0 +1,54 @@
+"""BatchNorm over the last axis with PyTorch's running statistics (`nn.BatchNorm1d`).
+
+Both frameworks normalise a training batch by its biased variance. They differ in what they keep
+for evaluation: flax's `nn.BatchNorm` averages the biased batch variance into `var`, PyTorch the
+unbiased one (times n / (n - 1), n the number of values per feature in the batch: 6.7% at batch
+16). Every reference implementation here is PyTorch, so `running_var="unbiased"` is the default;
+`"biased"` keeps flax's statistics (the tables before issue 11). Parameter and statistic names
+(`scale`, `bias`; `batch_stats/mean`, `batch_stats/var`) and the momentum convention
+(`running = momentum * running + (1 - momentum) * batch`, i.e. PyTorch's momentum 0.1 is 0.9
+here) are flax's, so checkpoints of either kind load into the other.
+"""
+
+from __future__ import annotations
+
+import math
+
+import flax.linen as nn
+import jax.numpy as jnp
+from jaxtyping import Array, ArrayLike, Float
+
+RUNNING_VARS = ("unbiased", "biased")
+
+
+class BatchNorm(nn.Module):
+    """Returns `scale * (x - mean) / sqrt(var + eps) + bias`, statistics per feature over every leading axis."""
+
+    use_running_average: bool
+    momentum: float = 0.9
+    epsilon: float = 1e-5
+    running_var: str = "unbiased"
+
+    @nn.compact
+    def __call__(self, x: Float[ArrayLike, "... f"]) -> Float[Array, "... f"]:
+        if self.running_var not in RUNNING_VARS:
+            raise ValueError(f"BatchNorm.running_var must be one of {RUNNING_VARS}, got {self.running_var!r}")
+        x = jnp.asarray(x)
+        f = x.shape[-1]
+        ra_mean = self.variable("batch_stats", "mean", lambda: jnp.zeros((f,), jnp.float32))
+        ra_var = self.variable("batch_stats", "var", lambda: jnp.ones((f,), jnp.float32))
+        scale = self.param("scale", nn.initializers.ones_init(), (f,), jnp.float32)
+        bias = self.param("bias", nn.initializers.zeros_init(), (f,), jnp.float32)
+        if self.use_running_average:
+            mean, var = ra_mean.value, ra_var.value
+        else:
+            axes = tuple(range(x.ndim - 1))
+            mean = jnp.mean(x, axis=axes)
+            var = jnp.mean(jnp.square(x - mean), axis=axes)
+            if not self.is_initializing():
+                n = math.prod(x.shape[:-1])
+                keep = var * (n / (n - 1)) if self.running_var == "unbiased" and n > 1 else var
+                m = self.momentum
+                ra_mean.value = m * ra_mean.value + (1.0 - m) * mean
+                ra_var.value = m * ra_var.value + (1.0 - m) * keep
+        return (x - mean) * (scale / jnp.sqrt(var + self.epsilon)) + bias

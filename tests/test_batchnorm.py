@@ -1,0 +1,74 @@
+"""nn.BatchNorm: PyTorch's running statistics (unbiased running variance) or flax's (biased)."""
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxmotion.nn.batchnorm import BatchNorm
+
+
+def _steps(module, xs):
+    v = module.init(jax.random.key(0), xs[0])
+    outs = []
+    for x in xs:
+        y, upd = module.apply(v, x, mutable=["batch_stats"])
+        v = {**v, **upd}
+        outs.append(np.asarray(y))
+    return v, outs
+
+
+def _batches(n=4, b=16, f=5, seed=0):
+    rng = np.random.default_rng(seed)
+    return [jnp.asarray(rng.normal(2.0, 3.0, (b, f)), jnp.float32) for _ in range(n)]
+
+
+def test_unbiased_running_variance_by_hand():
+    xs = _batches(n=1)
+    v, (y,) = _steps(BatchNorm(use_running_average=False), xs)
+    x = np.asarray(xs[0])
+    np.testing.assert_allclose(np.asarray(v["batch_stats"]["var"]), 0.9 + 0.1 * x.var(0, ddof=1), rtol=1e-5)
+    np.testing.assert_allclose(np.asarray(v["batch_stats"]["mean"]), 0.1 * x.mean(0), rtol=1e-5, atol=1e-6)
+    # the batch itself is normalised by its biased variance, as in both frameworks
+    np.testing.assert_allclose(y, (x - x.mean(0)) / np.sqrt(x.var(0) + 1e-5), rtol=1e-4, atol=1e-5)
+
+
+def test_biased_option_matches_flax_batchnorm():
+    xs = _batches()
+    ours, yo = _steps(BatchNorm(use_running_average=False, running_var="biased"), xs)
+    ref, yr = _steps(nn.BatchNorm(use_running_average=False, momentum=0.9, epsilon=1e-5), xs)
+    assert jax.tree.structure(ours) == jax.tree.structure(ref)  # same names: checkpoints load either way
+    for a, b in zip(jax.tree.leaves(ours), jax.tree.leaves(ref)):
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(yo[-1], yr[-1], rtol=1e-4, atol=1e-5)
+
+
+def test_leading_axes_all_count_and_evaluation_uses_running_stats():
+    x = jnp.asarray(np.random.default_rng(1).normal(size=(4, 3, 6)), jnp.float32)  # (b, K, f): n = 12
+    v, _ = _steps(BatchNorm(use_running_average=False), [x])
+    flat = np.asarray(x).reshape(-1, 6)
+    np.testing.assert_allclose(np.asarray(v["batch_stats"]["var"]), 0.9 + 0.1 * flat.var(0, ddof=1), rtol=1e-5)
+    y = BatchNorm(use_running_average=True).apply(v, x)
+    bs = v["batch_stats"]
+    np.testing.assert_allclose(np.asarray(y).reshape(-1, 6), (flat - bs["mean"]) / np.sqrt(bs["var"] + 1e-5), rtol=1e-4, atol=1e-5, err_msg="eval")
+    with pytest.raises(ValueError, match="running_var"):
+        BatchNorm(use_running_average=False, running_var="pop").init(jax.random.key(0), x)
+
+
+def test_matches_pytorch_batchnorm1d():
+    torch = pytest.importorskip("torch")
+    xs = _batches(n=5, b=16, f=7, seed=3)
+    v, ys = _steps(BatchNorm(use_running_average=False), xs)
+    bn = torch.nn.BatchNorm1d(7, momentum=0.1, eps=1e-5)
+    bn.train()
+    for x, y in zip(xs, ys):
+        t = bn(torch.from_numpy(np.array(x))).detach().numpy()
+        np.testing.assert_allclose(y, t, rtol=1e-4, atol=1e-5)
+    np.testing.assert_allclose(np.asarray(v["batch_stats"]["mean"]), bn.running_mean.numpy(), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(np.asarray(v["batch_stats"]["var"]), bn.running_var.numpy(), rtol=1e-5)
+    bn.eval()
+    x = xs[0]
+    np.testing.assert_allclose(
+        np.asarray(BatchNorm(use_running_average=True).apply(v, x)), bn(torch.from_numpy(np.array(x))).detach().numpy(), rtol=1e-4, atol=1e-5
+    )
