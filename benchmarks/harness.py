@@ -15,7 +15,7 @@ import statistics
 import time
 from typing import Callable
 
-MODELS = ("dlow", "mojo", "divsamp")
+MODELS = ("dlow", "mojo", "divsamp", "gsps", "motionmap")
 
 
 @dataclasses.dataclass
@@ -31,6 +31,9 @@ class Settings:
     sample_batches: tuple[int, ...] = (1, 64)
     k_sweep: tuple[int, ...] = (1, 10, 50, 100, 500, 1000)
     t_pred_sweep: tuple[int, ...] = (15, 30, 60, 120)
+    gsps_nk: tuple[int, int] = (10, 10)  # GSPS training samples per window, nk1 x nk2 (the release's)
+    gsps_mm: int = 10  # pseudo ground-truth futures per window in GSPS's training step (the release's)
+    hm_size: int = 128  # MotionMap's heatmap side (the release's 128 x 128)
     warmup: int = 2
     repeats: int = 7
     models: tuple[str, ...] = MODELS
@@ -40,14 +43,15 @@ class Settings:
     def quick(cls, **kw) -> "Settings":
         """Returns tiny settings for a smoke test (seconds, not minutes; numbers not meaningful)."""
         base = dict(train_batch=8, sampler_batch=2, k=5, sample_batches=(1, 4), k_sweep=(1, 20), t_pred_sweep=(10, 30),
-                    t_pred=30, warmup=1, repeats=2)
+                    t_pred=30, warmup=1, repeats=2, gsps_nk=(2, 2), gsps_mm=3, hm_size=16)
         base.update(kw)
         return cls(**base)
 
 
 @dataclasses.dataclass(frozen=True)
 class Case:
-    """One measurement: `kind` is train_cvae | train_sampler | sample | sample_prior."""
+    """One measurement: `kind` is train_cvae | train_sampler | sample | sample_prior (DLow, MOJO, DivSamp);
+    train_generator | sample (GSPS); train_ae | heatmap (MotionMap)."""
 
     model: str
     kind: str
@@ -69,10 +73,22 @@ def plan(s: Settings) -> list[Case]:
     """Returns every case of a run, in the order both workers run them.
 
     The sweeps decode latents drawn from N(0, I) with the CVAE decoder (the part whose cost grows
-    with K and t_pred; DLow's and MOJO's Q networks are trained for one K).
+    with K and t_pred; DLow's and MOJO's Q networks are trained for one K). GSPS has one network to
+    train after its (cheap, single-frame) pose prior: its generator step draws nk1 x nk2 samples per
+    window (`k` = nk1 * nk2) at the second stages' batch; MotionMap's autoencoder step runs at the
+    first stages' batch, and its heatmap network's forward pass (the map of every window, sigmoid
+    included) at the sampling batches.
     """
     cases = []
     for m in s.models:
+        if m == "gsps":
+            cases.append(Case(m, "train_generator", s.sampler_batch, k=s.gsps_nk[0] * s.gsps_nk[1], t_pred=s.t_pred))
+            cases += [Case(m, "sample", b, k=s.k, t_pred=s.t_pred) for b in s.sample_batches]
+            continue
+        if m == "motionmap":
+            cases.append(Case(m, "train_ae", s.train_batch, t_pred=s.t_pred))
+            cases += [Case(m, "heatmap", b) for b in s.sample_batches]
+            continue
         cases.append(Case(m, "train_cvae", s.train_batch, t_pred=s.t_pred))
         cases.append(Case(m, "train_sampler", s.sampler_batch, k=s.k, t_pred=s.t_pred))
         cases += [Case(m, "sample", b, k=s.k, t_pred=s.t_pred) for b in s.sample_batches]
@@ -180,3 +196,22 @@ def parents_for(dim: int) -> tuple[int, ...]:
     """Returns a kinematic tree of `dim / 3 + 1` joints (root first): five chains from the root, for bone-length losses."""
     j = dim // 3 + 1
     return tuple(-1 if i == 0 else (0 if i % 4 == 1 else i - 1) for i in range(j))
+
+
+def gsps_skeleton(dim: int) -> tuple[tuple[int, ...], dict[str, int], tuple[tuple[int, ...], ...], list[list[float]]]:
+    """Returns `(parents, roles, parts, bounds)` for GSPS on `parents_for(dim)`'s five chains (at least 20 joints).
+
+    The chains from the root read as right leg (hip, knee, foot), left leg, spine (spine, thorax,
+    neck, head), right arm (shoulder, elbow, wrist) and left arm; parts are the legs' nodes, then the
+    rest (GSPS's lower / upper body); `bounds` are 17 fixed cosine intervals, two of them open.
+    """
+    parents = parents_for(dim)
+    if len(parents) < 21:
+        raise ValueError(f"gsps_skeleton: needs dim >= 60 (five chains of four joints), got {dim}")
+    roles = {"root": 0, "r_hip": 1, "r_knee": 2, "r_foot": 3, "l_hip": 5, "l_knee": 6, "l_foot": 7, "thorax": 10,
+             "head": 12, "r_shoulder": 13, "r_elbow": 14, "r_wrist": 15, "l_shoulder": 17, "l_elbow": 18, "l_wrist": 19}
+    lower = tuple(range(0, 8))
+    upper = tuple(range(8, len(parents) - 1))
+    bounds = [[-0.8 + 0.05 * i, 0.3 + 0.03 * i] for i in range(17)]
+    bounds[2][0], bounds[9][1] = -1.0, 1.0
+    return parents, roles, (lower, upper), bounds

@@ -20,8 +20,9 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from benchmarks.harness import Case, PeakRSS, Settings, measure, parents_for, plan
-from jaxmotion.models import divsamp, dlow, mojo
+from benchmarks.harness import Case, PeakRSS, Settings, gsps_skeleton, measure, parents_for, plan
+from jaxmotion.models import divsamp, dlow, gsps, mojo
+from jaxmotion.models import motionmap as mm
 from jaxmotion.train.loop import bn_optimizer, make_bn_train_step
 from jaxmotion.train.loop import create_state, make_train_step
 
@@ -142,6 +143,53 @@ class Builders:
         step = make_bn_train_step(lambda q, f, b, k: loss(q, cvae_variables=f, batch=b, key=k), tx)
         return _train_runner(step, create_state(sv, tx, frozen=v), self.data(c.batch, s.t_his + c.t_pred))
 
+
+    # --- GSPS ------------------------------------------------------------------------------------
+    def gsps(self, c: Case):
+        s, g = self.s, gsps.GSPSConfig()
+        parents, roles, parts, bounds = gsps_skeleton(s.dim)
+        gen = gsps.GSPSGenerator(parts=parts, hidden=g.hidden, num_stage=g.num_stage, bn_running_var=g.bn_running_var)
+        nodes0 = jnp.zeros((2, s.dim // 3, 3 * g.n_pre))
+        v = dict(gen.init(jax.random.key(0), nodes0, jnp.zeros((2, len(parts), g.nz)), train=False))
+        if c.kind == "train_generator":
+            nk1, nk2 = s.gsps_nk
+            prior = gsps.PosePrior(dim=s.dim, n_layers=g.prior_layers)
+            frozen = {"prior": prior.init(jax.random.key(1), jnp.zeros((1, s.dim))), "bounds": jnp.asarray(bounds)}
+            weights = {k: getattr(g, k) for k in (
+                "lambda_his", "lambda_limb", "lambda_div_first", "lambda_div_rest", "alpha", "beta", "lambda_recon",
+                "lambda_recon_mm", "lambda_prior", "prior_stride", "lambda_angle")}
+            loss = functools.partial(gsps.generator_loss, gen, prior=prior, t_his=s.t_his, parents=parents, parts=parts,
+                                     roles=roles, n_pre=g.n_pre, nz=g.nz, nk1=nk1, nk2=nk2, **weights)
+            tx = bn_optimizer(optax.chain(optax.clip_by_global_norm(g.grad_clip), optax.adam(g.lr)))
+            step = make_bn_train_step(
+                lambda v, f, b, k: loss(v, prior_params=f["prior"], angle_bounds=f["bounds"], batch=b, key=k), tx)
+            batch = {"window": self.data(c.batch, s.t_his + c.t_pred),
+                     "mm": self.data(c.batch * s.gsps_mm, c.t_pred).reshape(c.batch, s.gsps_mm, c.t_pred, s.dim),
+                     "mm_mask": jnp.ones((c.batch, s.gsps_mm))}
+            return _train_runner(step, create_state(v, tx, frozen=frozen), batch)
+        x = self.data(c.batch, s.t_his)
+
+        def sample(v, x, key):
+            z = gsps.sample_noise(key, c.batch, c.k, len(parts), g.nz)
+            return gsps.generate(gen, v, x, z, t_pred=c.t_pred, n_pre=g.n_pre, train=False)[0][:, :, s.t_his :]
+
+        return _sample_runner(sample, v, x, jax.random.key(2))
+
+    # --- MotionMap -------------------------------------------------------------------------------
+    def motionmap(self, c: Case):
+        s = self.s
+        m = mm.MotionMapConfig(hm_size=s.hm_size)
+        if c.kind == "train_ae":
+            ae = mm.ae_model(m, s.dim, s.t_his, c.t_pred)
+            p = ae.init(jax.random.key(0), self.data(1, s.t_his), self.data(1, c.t_pred))
+            tx = optax.amsgrad(m.lr)  # the release's Adam(amsgrad=True)
+            step = make_train_step(lambda q, _f, b, k: mm.ae_loss(ae, q, b, scale=m.loss_scale), tx)
+            batch = {"x": self.data(c.batch, s.t_his), "y": self.data(c.batch, c.t_pred)}
+            return _train_runner(step, create_state(p, tx), batch)
+        hm = mm.heatmap_model(m)
+        x = self.data(c.batch, s.t_his)
+        p = hm.init(jax.random.key(1), x[:1])
+        return _sample_runner(lambda p, x: jax.nn.sigmoid(hm.apply(p, x)), p, x)
 
 def main():
     ap = argparse.ArgumentParser()

@@ -125,7 +125,8 @@ def render(doc: dict) -> str:
     ]
     for r in rows:
         if r["kind"].startswith("train"):
-            stage = "CVAE" if r["kind"] == "train_cvae" else f"sampler (K = {r['k']})"
+            stage = {"train_cvae": "CVAE", "train_ae": "autoencoder",
+                     "train_generator": f"generator (nk1 x nk2 = {r['k']})"}.get(r["kind"], f"sampler (K = {r['k']})")
             lines.append(f"| {r['model']} | {stage} | {r['batch']} | {_ms(r.get('jax'))} | {_ms(r.get('torch_eager'))} | "
                          f"{_ratio(r, 'torch_eager')} | {_wps(r, 'jax')} / {_wps(r, 'torch_eager')} | {_target(r, s)} |")
     lines += [
@@ -140,6 +141,18 @@ def render(doc: dict) -> str:
             lines.append(f"| {r['model']} | {r['batch']} | {_ms(r.get('jax'))} | {_ms(r.get('torch_eager'))} | "
                          f"{_ms(r.get('torch_compile'))} | {_ratio(r, 'torch_eager')} | {_ratio(r, 'torch_compile')} | "
                          f"{_target(r, s)} |")
+    heat = [r for r in rows if r["kind"] == "heatmap"]
+    if heat:
+        lines += [
+            "",
+            f"### MotionMap's heatmap network ({s.hm_size} x {s.hm_size} map of each window, sigmoid included)",
+            "",
+            "| model | batch | jaxmotion ms | PyTorch eager ms | torch.compile ms | ratio (eager) | ratio (compile) |",
+            "| --- | --- | --- | --- | --- | --- | --- |",
+        ]
+        for r in heat:
+            lines.append(f"| {r['model']} | {r['batch']} | {_ms(r.get('jax'))} | {_ms(r.get('torch_eager'))} | "
+                         f"{_ms(r.get('torch_compile'))} | {_ratio(r, 'torch_eager')} | {_ratio(r, 'torch_compile')} |")
     for axis, label in (("k", "K"), ("t_pred", "t_pred")):
         lines += [
             "",
@@ -190,7 +203,7 @@ def main(argv=None):
     ap.add_argument("--models", default=",".join(MODELS), help=f"comma-separated subset of {','.join(MODELS)}")
     ap.add_argument("--repeats", type=int, help="timed runs per case (default 7; quick 2)")
     ap.add_argument("--warmup", type=int, help="untimed runs per case before timing (default 2; quick 1)")
-    ap.add_argument("--compile-cases", default="sample",
+    ap.add_argument("--compile-cases", default="sample,heatmap",
                     help="case kinds also run under torch.compile ('' for none; e.g. 'sample,train_cvae'); "
                          "compiling a 60-step training graph takes minutes on a 2-core CPU")
     ap.add_argument("--frameworks", default="jax,torch_eager,torch_compile",

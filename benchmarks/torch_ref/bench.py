@@ -18,8 +18,8 @@ import time
 import numpy as np
 import torch
 
-from benchmarks.harness import Case, PeakRSS, Settings, measure, parents_for, plan
-from benchmarks.torch_ref import divsamp, dlow, mojo
+from benchmarks.harness import Case, PeakRSS, Settings, gsps_skeleton, measure, parents_for, plan
+from benchmarks.torch_ref import divsamp, dlow, gsps, mojo, motionmap
 
 
 class Builders:
@@ -129,6 +129,39 @@ class Builders:
         loss = lambda: divsamp.sampler_loss(sampler, cvae, batch, *draws(), t_his=s.t_his)
         return self._train(loss, list(sampler.parameters()), torch.optim.Adam(sampler.parameters(), 1e-3))
 
+
+    # --- GSPS ------------------------------------------------------------------------------------
+    def gsps(self, c: Case):
+        s = self.s
+        parents, roles, parts, bounds = gsps_skeleton(s.dim)
+        gen = gsps.GSPSGenerator(s.dim // 3, parts)
+        if c.kind == "train_generator":
+            nk1, nk2 = s.gsps_nk
+            prior = gsps.PosePrior(s.dim).requires_grad_(False)  # trained first, then frozen
+            batch = {"window": self.data(c.batch, s.t_his + c.t_pred),
+                     "mm": self.data(c.batch * s.gsps_mm, c.t_pred).reshape(c.batch, s.gsps_mm, c.t_pred, s.dim),
+                     "mm_mask": torch.ones(c.batch, s.gsps_mm)}
+            kw = dict(t_his=s.t_his, parents=parents, parts=parts, roles=roles, angle_bounds=torch.tensor(bounds),
+                      nk1=nk1, nk2=nk2, **gsps.loss_weights())
+            loss = lambda: gsps.generator_loss(gen, prior, batch, gsps.training_noise(c.batch, len(parts), nk1, nk2, gen.nz),
+                                               int(torch.randint(kw["prior_stride"], ())), **kw)
+            return self._train(loss, list(gen.parameters()), torch.optim.Adam(gen.parameters(), 1e-3), clip=100.0)
+        gen.eval()  # sampling uses the BatchNorm running averages
+        x = self.data(c.batch, s.t_his)
+        return self._sample(lambda: gsps.sample_gsps(gen, x, gsps.sample_noise(c.batch, c.k, len(parts), gen.nz),
+                                                     t_pred=c.t_pred))
+
+    # --- MotionMap -------------------------------------------------------------------------------
+    def motionmap(self, c: Case):
+        s = self.s
+        if c.kind == "train_ae":
+            ae = motionmap.MotionMapAE(s.dim, s.t_his, c.t_pred)
+            batch = {"x": self.data(c.batch, s.t_his), "y": self.data(c.batch, c.t_pred)}
+            loss = lambda: motionmap.ae_loss(ae, batch, scale=10.0)
+            return self._train(loss, list(ae.parameters()), torch.optim.Adam(ae.parameters(), 1e-3, amsgrad=True))
+        hm = motionmap.HeatmapNet(s.dim, s.hm_size)
+        x = self.data(c.batch, s.t_his)
+        return self._sample(lambda: torch.sigmoid(hm(x)))
 
 def main():
     ap = argparse.ArgumentParser()

@@ -1,7 +1,8 @@
 """Loads jaxmotion (Flax) parameters into the PyTorch reference modules.
 
 Flax `Dense` kernels are `(in, out)` and jaxmotion's GRU weights `(in, 3h)`; PyTorch stores
-`(out, in)` and `(3h, in)`, so every conversion is a transpose, with identical gate order (r, z, n).
+`(out, in)` and `(3h, in)`, so every conversion is a transpose, with identical gate order (r, z, n);
+Flax 1 x 1 convolution kernels `(1, 1, in, out)` become `nn.Conv2d`'s `(out, in, 1, 1)`.
 Parameters are taken from any nested mapping of array-likes (a Flax params pytree, or numpy arrays
 read back from an `.npz`), so this module needs no JAX.
 """
@@ -14,7 +15,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from benchmarks.torch_ref import divsamp, dlow, mojo
+from benchmarks.torch_ref import divsamp, dlow, gsps, mojo, motionmap
 from benchmarks.torch_ref.layers import GRU, MLP
 
 
@@ -157,6 +158,74 @@ def divsamp_sampler(model: divsamp.DivSampSampler, variables: Mapping) -> divsam
         load_dense(m.dense_0, hp["dense_0"], f"{head}.dense_0")
         load_batchnorm(m.bn, hp["bn"], _sub(_sub(s, head), "bn"), f"{head}.bn")
         load_dense(m.dense_1, hp["dense_1"], f"{head}.dense_1")
+    return model
+
+
+def gsps_prior(model: gsps.PosePrior, params: Mapping) -> gsps.PosePrior:
+    """Returns `model` holding the jaxmotion PosePrior `params` (`linqr_i`: householder, r, bias; `prelu_i`: log_slope)."""
+    p = _inner(params)
+    n_lin = sum(isinstance(m, gsps.LinQR) for m in model.layers)
+    if n_lin != sum(k.startswith("linqr_") for k in p):
+        raise ValueError(f"gsps_prior: {sum(k.startswith('linqr_') for k in p)} jaxmotion LinQR layers, {n_lin} PyTorch")
+    i_lin = i_prelu = 0
+    for layer in model.layers:
+        if isinstance(layer, gsps.LinQR):
+            q = p[f"linqr_{i_lin}"]
+            for name in ("householder", "r", "bias"):
+                _copy(getattr(layer, name), _t(q[name]), f"linqr_{i_lin}.{name}")
+            i_lin += 1
+        else:
+            _copy(layer.log_slope, _t(p[f"prelu_{i_prelu}"]["log_slope"]), f"prelu_{i_prelu}.log_slope")
+            i_prelu += 1
+    return model
+
+
+def gsps_generator(model: gsps.GSPSGenerator, variables: Mapping) -> gsps.GSPSGenerator:
+    """Returns `model` holding the jaxmotion GSPSGenerator `variables` (`params`, and `batch_stats` when present)."""
+    p, s = variables["params"], variables.get("batch_stats")
+    if len(model.parts) != len(p):
+        raise ValueError(f"gsps_generator: {len(p)} jaxmotion part GCNs, {len(model.parts)} PyTorch")
+    for i, part in enumerate(model.parts):
+        name = f"part_{i}"
+        load_gcl_stack(part.gcn, p[name]["gcn"], _sub(_sub(s, name), "gcn"), f"{name}.gcn")
+        load_graph_conv(part.out, p[name]["out"], f"{name}.out")
+    return model
+
+
+def load_conv1x1(conv: nn.Conv2d, p: Mapping, name: str = "conv") -> None:
+    """Copies a Flax 1 x 1 `Conv` (`kernel (1, 1, in, out)`, `bias`) into `nn.Conv2d`."""
+    _copy(conv.weight, _t(p["kernel"]).permute(3, 2, 0, 1), f"{name}.kernel")
+    _copy(conv.bias, _t(p["bias"]), f"{name}.bias")
+
+
+def motionmap_ae(model: motionmap.MotionMapAE, params: Mapping) -> motionmap.MotionMapAE:
+    """Returns `model` holding the jaxmotion MotionMapAE `params`."""
+    p = _inner(params)
+    load_gru(model.enc_x, p["enc_x"], "enc_x")
+    load_gru(model.enc_y, p["enc_y"], "enc_y")
+    load_mlp(model.fusion, p["fusion"], "fusion")
+    d = p["decoder"]
+    load_dense(model.decoder.h0, d["h0"], "decoder.h0")
+    load_gru_cell(model.decoder.cell, d["cell"], "decoder.cell")
+    load_dense(model.decoder.out, d["out"], "decoder.out")
+    load_mlp(model.uncertainty, p["uncertainty"], "uncertainty")
+    load_dense(model.uncertainty_out, p["uncertainty_out"], "uncertainty_out")
+    return model
+
+
+def motionmap_heatmap(model: motionmap.HeatmapNet, params: Mapping) -> motionmap.HeatmapNet:
+    """Returns `model` holding the jaxmotion HeatmapNet `params` (GRU, LayerNorm, map layer, 1 x 1 convolutions)."""
+    p = _inner(params)
+    load_gru(model.context, p["context"], "context")
+    _copy(model.norm.weight, _t(p["norm"]["scale"]), "norm.scale")
+    _copy(model.norm.bias, _t(p["norm"]["bias"]), "norm.bias")
+    load_dense(model.to_map, p["to_map"], "to_map")
+    n = sum(k.startswith("conv_") for k in p)
+    if n != len(model.convs):
+        raise ValueError(f"motionmap_heatmap: {n} jaxmotion convolutions, {len(model.convs)} PyTorch")
+    for i, conv in enumerate(model.convs):
+        load_conv1x1(conv, p[f"conv_{i}"], f"conv_{i}")
+    load_conv1x1(model.final, p["final"], "final")
     return model
 
 
