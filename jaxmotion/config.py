@@ -1,15 +1,23 @@
 """Experiment configuration: plain dataclasses, written in Python files under `experiments/configs/`.
 
 A config file defines `get_config() -> Config`; its top comment is the command that runs it, the
-runtime and the result it gave.
+runtime and the result it gave. `load_config` checks it (`validate`): unknown fields, wrong types and
+impossible values are one `jaxmotion.errors.ConfigError` listing every problem.
 """
 
 from __future__ import annotations
 
+import ast
 import dataclasses
+import difflib
 import importlib.util
+import math
+import types
+import typing
 from pathlib import Path
 from typing import Any
+
+from jaxmotion.errors import ConfigError
 
 
 @dataclasses.dataclass
@@ -56,10 +64,139 @@ def load_config(path: str | Path | None) -> Config:
     spec.loader.exec_module(module)
     if not hasattr(module, "get_config"):
         raise ValueError(f"{path}: a config file must define get_config() -> jaxmotion.config.Config")
+    # A dataclass rejects only the first unknown keyword; read the file to list them all.
+    unknown = _unknown_fields(path, vars(module))
+    if unknown:
+        raise ConfigError(str(path), unknown)
     cfg = module.get_config()
     if not isinstance(cfg, Config):
         raise TypeError(f"{path}: get_config() returned {type(cfg).__name__}, expected jaxmotion.config.Config")
+    validate(cfg, source=str(path))
     return cfg
+
+
+def _unknown_fields(path: Path, namespace: dict) -> list[str]:
+    """Returns a problem per keyword of a dataclass call in the file (`Config(...)`, `DLowConfig(...)`) that is no field."""
+    problems = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if not isinstance(node, ast.Call):
+            continue
+        f = node.func
+        target = namespace.get(f.id) if isinstance(f, ast.Name) else None
+        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id in namespace:
+            target = getattr(namespace[f.value.id], f.attr, None)
+        if not (isinstance(target, type) and dataclasses.is_dataclass(target)):
+            continue
+        names = [fl.name for fl in dataclasses.fields(target) if fl.init]
+        for kw in node.keywords:
+            if kw.arg is not None and kw.arg not in names:
+                near = difflib.get_close_matches(kw.arg, names, n=1)
+                hint = f"; did you mean {near[0]!r}?" if near else f"; fields: {names}"
+                problems.append(f"line {node.lineno}: unknown field {kw.arg!r} of {target.__name__}{hint}")
+    return problems
+
+
+_CHOICES = {"train_sampler": ("windows", "sequences"), "mm_deviation": (None, "divsamp", "comusion")}
+# `Config`'s intervals: (field, rule, what the rule asks), checked once the field's type is right.
+_CONFIG_RULES = (
+    *((n, lambda v: v >= 1, ">= 1") for n in ("ckpt_every", "log_every", "eval_batch")),
+    ("eval_k", lambda v: bool(v) and all(k >= 1 for k in v), ">= 1 each"),
+    ("seed", lambda v: v >= 0, ">= 0 (it seeds numpy's generators)"),
+    ("max_test_windows", lambda v: v is None or v >= 1, "None or >= 1"),
+    ("mode_threshold", lambda v: v > 0, "> 0"),
+    ("mode_max_boundary", lambda v: v >= 0, ">= 0"),
+)
+
+
+def validate(cfg: Config, num_train_windows: int | None = None, source: str = "config") -> None:
+    """Raises `ConfigError` listing every wrong type and impossible value of `cfg` and its `method_config`.
+
+    Types are checked against the dataclass annotations; values by field name: steps >= 0, batch
+    sizes >= 1 (and at most `num_train_windows` when given), learning rates > 0, fractions in [0, 1],
+    every K >= 1, every float finite, and `Config`'s own choices and intervals.
+    """
+    problems = _check_dataclass(cfg, "")
+    bad = {p.split(" ", 1)[0] for p in problems}  # fields of the wrong type: their values are not checked too
+    for name, rule, text in _CONFIG_RULES:
+        if name not in bad and not rule(getattr(cfg, name)):
+            problems.append(f"{name} must be {text}, got {getattr(cfg, name)!r}")
+    for name, choices in _CHOICES.items():
+        if getattr(cfg, name) not in choices:
+            problems.append(f"{name} must be one of {choices}, got {getattr(cfg, name)!r}")
+    if cfg.method_config is not None and dataclasses.is_dataclass(cfg.method_config):
+        problems += _check_dataclass(cfg.method_config, "method_config.", num_train_windows)
+    if problems:
+        raise ConfigError(source, problems)
+
+
+def _check_dataclass(obj, prefix: str, num_windows: int | None = None) -> list[str]:
+    problems = []
+    try:
+        hints = typing.get_type_hints(type(obj))
+    except Exception:  # an annotation that does not resolve: check the values only
+        hints = {}
+    for f in dataclasses.fields(obj):
+        name, v = prefix + f.name, getattr(obj, f.name)
+        hint = hints.get(f.name, Any)
+        if not _type_ok(v, hint):
+            problems.append(f"{name} must be {_type_name(hint)}, got {type(v).__name__} {v!r}")
+            continue
+        if dataclasses.is_dataclass(v) and not isinstance(v, type):
+            if prefix:  # `Config.method_config` itself is checked by `validate`
+                problems += _check_dataclass(v, name + ".", num_windows)
+        elif prefix and not isinstance(v, bool):  # the method's settings: rules by field name
+            problems += _check_value(name, f.name, v, num_windows)
+    return problems
+
+
+def _check_value(name: str, field: str, v, num_windows: int | None) -> list[str]:
+    if isinstance(v, float) and not math.isfinite(v):
+        return [f"{name} must be finite, got {v}"]
+    if not isinstance(v, (int, float)):
+        return []
+    if field.endswith("num_steps") and v < 0:
+        return [f"{name} must be >= 0, got {v}"]
+    if field.endswith("batch_size"):
+        if v < 1:
+            return [f"{name} must be >= 1, got {v}"]
+        if num_windows is not None and v > num_windows:
+            return [f"{name} {v} is larger than the {num_windows} training windows"]
+    if (field == "lr" or field.endswith("_lr")) and not v > 0:
+        return [f"{name} must be > 0, got {v}"]
+    if field.endswith("fraction") and not 0 <= v <= 1:
+        return [f"{name} must be in [0, 1], got {v}"]
+    if field in ("k", "nk", "num_k") and v < 1:
+        return [f"{name} (K) must be >= 1, got {v}"]
+    return []
+
+
+def _type_ok(v, hint) -> bool:
+    if hint is Any:
+        return True
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        return any(_type_ok(v, a) for a in args)
+    if hint is type(None):
+        return v is None
+    if hint is bool:
+        return isinstance(v, bool)
+    if hint is int:
+        return isinstance(v, int) and not isinstance(v, bool)
+    if hint is float:
+        return isinstance(v, (int, float)) and not isinstance(v, bool)
+    if origin is tuple:
+        if not isinstance(v, tuple):
+            return False
+        if len(args) == 2 and args[1] is Ellipsis:
+            return all(_type_ok(x, args[0]) for x in v)
+        return not args or (len(args) == len(v) and all(_type_ok(x, a) for x, a in zip(v, args)))
+    if origin is not None:
+        return isinstance(v, origin)
+    return isinstance(v, hint) if isinstance(hint, type) else True
+
+
+def _type_name(hint) -> str:
+    return hint.__name__ if isinstance(hint, type) else str(hint).replace("typing.", "")
 
 
 def to_dict(cfg: Config) -> dict:

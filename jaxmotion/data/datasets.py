@@ -14,11 +14,15 @@ drops the root. `load_dataset(spec)` picks the loader from a path. `info` record
 
 from __future__ import annotations
 
+import io
 import json
 import os
+import pickle
+import pickletools
 import re
 import shutil
 import tarfile
+import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -26,7 +30,8 @@ import numpy as np
 
 from jaxmotion.data.augment import left_right_pairs
 from jaxmotion.data.types import MotionDataset, Sequence, Skeleton
-from jaxmotion.formats.bvh import Bvh, forward_kinematics, guess_scale, is_ground_node, read_bvh
+from jaxmotion.errors import DataError
+from jaxmotion.formats.bvh import Bvh, forward_kinematics, guess_scale, is_ground_skeleton, read_bvh
 
 # ----------------------------------------------------------------------------------------------
 # Human3.6M (VideoPose3D's data_3d_h36m.npz, metres, Z up)
@@ -119,21 +124,40 @@ def load_humaneva(npz_path: str | os.PathLike) -> MotionDataset:
 
 
 def _read_positions_3d(path: Path) -> dict:
-    """Returns the `positions_3d` dict of a VideoPose3D npz, or raises ValueError naming `path`."""
+    """Returns the `positions_3d` dict of a VideoPose3D npz, or raises `DataError` naming `path`.
+
+    Read by hand rather than by `np.load`: `np.load` unpickles a file that is not a zip archive, and
+    a pickle whose length field is corrupt allocates that length (up to 4 GB) before it finds the data
+    missing. Here the pickle is first walked with `pickletools`, which checks every length against the
+    bytes there are.
+    """
     if not path.is_file():
         raise FileNotFoundError(f"{path}: npz file not found")
+    if not zipfile.is_zipfile(path):
+        raise DataError(path, "not an npz file (no zip archive: truncated, or another format?)")
     try:
-        with np.load(path, allow_pickle=True) as npz:
-            if "positions_3d" not in npz.files:
-                raise KeyError(f"no key 'positions_3d' (keys: {sorted(npz.files)})")
-            obj = npz["positions_3d"]
-            data = obj.item() if obj.dtype == object and obj.shape == () else obj
-    except KeyError as e:
-        raise ValueError(f"{path}: {e.args[0]}") from None
-    except Exception as e:  # zip, pickle and EOF errors from a corrupt or truncated file
-        raise ValueError(f"{path}: cannot read npz file ({type(e).__name__}: {e})") from e
+        with zipfile.ZipFile(path) as zf:
+            keys = sorted(n.removesuffix(".npy") for n in zf.namelist())
+            if "positions_3d" not in keys:
+                raise DataError(path, f"no key 'positions_3d' (keys: {keys})")
+            fp = io.BytesIO(zf.read("positions_3d.npy"))
+        version = np.lib.format.read_magic(fp)
+        read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+        shape, _, dtype = read_header(fp)
+        if not (dtype.hasobject and shape == ()):
+            raise DataError(path, f"'positions_3d' must be a pickled dict {{subject: {{action: array}}}}, got a {dtype} array {shape}")
+        start = fp.tell()
+        for _ in pickletools.genops(fp):  # raises on a length past the end, before anything is allocated
+            pass
+        fp.seek(start)
+        obj = pickle.load(fp)
+    except DataError:
+        raise
+    except Exception as e:  # zip, npy header, pickle and EOF errors from a corrupt or truncated file
+        raise DataError(path, f"cannot read npz file ({type(e).__name__}: {e})") from e
+    data = obj.item() if isinstance(obj, np.ndarray) and obj.dtype == object and obj.shape == () else obj
     if not isinstance(data, dict) or not all(isinstance(v, dict) for v in data.values()):
-        raise ValueError(f"{path}: 'positions_3d' must be a pickled dict {{subject: {{action: array}}}}")
+        raise DataError(path, "'positions_3d' must be a pickled dict {subject: {action: array}}")
     return data
 
 
@@ -143,21 +167,34 @@ def _npz_sequences(
 ) -> list[Sequence]:  # fmt: skip
     missing = [s for s in subjects if s not in data]
     if missing:
-        raise ValueError(f"{path}: subjects {missing} missing from 'positions_3d' (has {sorted(data)})")
+        raise DataError(path, f"subjects {missing} missing from 'positions_3d' (has {sorted(data, key=str)})")
     out = []
     for subject in subjects:
-        for action in sorted(data[subject]):
+        for action in sorted(data[subject], key=str):
             if (subject, action) in dropped:
                 continue
-            arr = np.asarray(data[subject][action])
-            where = f"{path}: positions_3d[{subject!r}][{action!r}]"
-            if arr.ndim != 3 or arr.shape[1:] != (num_joints, 3):
-                raise ValueError(f"{where} must be (T, {num_joints}, 3), got shape {arr.shape}")
-            if not np.issubdtype(arr.dtype, np.number) or not np.all(np.isfinite(arr)):
-                raise ValueError(f"{where} contains NaN, inf or non-numbers")
-            pos = arr[:, list(keep)].astype(np.float32)
-            out.append(Sequence(pos, fps, subject, action, name=f"{subject}/{action}"))
+            arr = data[subject][action]
+            where = f"positions_3d[{subject!r}][{action!r}]"
+            if not isinstance(arr, np.ndarray) or arr.ndim != 3 or arr.shape[1:] != (num_joints, 3):
+                shape = arr.shape if isinstance(arr, np.ndarray) else type(arr).__name__
+                raise DataError(path, f"{where} must be a (T, {num_joints}, 3) array, got {shape}")
+            if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
+                raise DataError(path, f"{where} must hold real numbers, got dtype {arr.dtype}")
+            with np.errstate(over="ignore"):  # float64 beyond 3.4e38 becomes inf here, so check after the cast
+                full = arr.astype(np.float32)
+            check_finite(path, full, where)
+            pos = full[:, list(keep)]
+            out.append(Sequence(pos, fps, subject, str(action), name=f"{subject}/{action}"))
     return out
+
+
+def check_finite(path: str | os.PathLike, positions: np.ndarray, what: str = "positions") -> None:
+    """Raises `DataError` naming `path`, the frame and the joint of the first NaN/inf in `positions` (F, J, 3)."""
+    bad = ~np.isfinite(positions)
+    if bad.any():
+        f, j = (int(v) for v in np.argwhere(bad)[0][:2])
+        n = int(bad.any(axis=-1).sum())
+        raise DataError(path, f"{what}: non-finite value {positions[f, j][bad[f, j]][0]} at frame {f}, joint {j} ({n} non-finite joint positions in all)")
 
 
 def _h36m_from_dict(data: dict, path: Path) -> MotionDataset:
@@ -233,7 +270,7 @@ def load_bandai(root: str | os.PathLike, cache_dir: str | os.PathLike | None = N
     clip_dir = bandai_clip_dir(root, cache_dir)
     files = sorted(p for p in clip_dir.iterdir() if p.suffix == ".bvh" and BANDAI_NAME.match(p.stem))
     if not files:
-        raise ValueError(f"{clip_dir}: no Bandai-Namco-2 clips (dataset-2_{{content}}_{{style}}_{{id}}.bvh)")
+        raise DataError(clip_dir, f"no Bandai-Namco-2 clips (dataset-2_{{content}}_{{style}}_{{id}}.bvh)")
     contents, styles = _bandai_labels(root, clip_dir)
 
     train, test, skipped = [], [], 0
@@ -248,19 +285,19 @@ def load_bandai(root: str | os.PathLike, cache_dir: str | os.PathLike | None = N
             continue
         bvh = read_bvh(f)
         if abs(bvh.fps - BANDAI_PROTOCOL["fps"]) > 0.1:
-            raise ValueError(f"{f}: expected {BANDAI_PROTOCOL['fps']:g} fps, file says {bvh.fps:.3f}")
+            raise DataError(f, f"expected {BANDAI_PROTOCOL['fps']:g} fps, file says {bvh.fps:.3f}")
         if bvh.names[0] != "joint_Root" or len(bvh.names) < 2 or bvh.names[1] != "Hips":
-            raise ValueError(f"{f}: expected joint_Root then Hips, got {bvh.names[:2]}")
-        names, parents, positions = _bvh_positions(bvh, scale=0.01, drop_root=True)
+            raise DataError(f, f"expected joint_Root then Hips, got {bvh.names[:2]}")
+        names, parents, positions = _bvh_positions(bvh, scale=0.01, drop=1)
         if skeleton is None:
             skeleton = Skeleton(names, parents)
         elif (names, parents) != (skeleton.names, skeleton.parents):
-            raise ValueError(f"{f}: skeleton differs from {files[0].name}'s")
+            raise DataError(f, f"skeleton differs from {files[0].name}'s")
         seq = Sequence(positions, BANDAI_PROTOCOL["fps"], "unknown", content, name=f.stem)
         (test if style in BANDAI_TEST_STYLES else train).append(seq)
     if skeleton is None:
         styles = BANDAI_TRAIN_STYLES + BANDAI_TEST_STYLES
-        raise ValueError(f"{clip_dir}: no clip has a protocol style {styles}")
+        raise DataError(clip_dir, f"no clip has a protocol style {styles}")
     return MotionDataset(
         name="bandai2",
         skeleton=skeleton,
@@ -300,7 +337,7 @@ def bandai_clip_dir(root: Path, cache_dir: str | os.PathLike | None) -> Path:
             tf.extractall(tmp, filter="data")
     except (tarfile.TarError, EOFError, OSError) as e:
         shutil.rmtree(tmp, ignore_errors=True)
-        raise ValueError(f"{tarball}: cannot extract ({type(e).__name__}: {e})") from e
+        raise DataError(tarball, f"cannot extract ({type(e).__name__}: {e})") from e
     (tmp / ".extracted").write_text(stamp)
     if cache.exists():  # empty, or a stale extraction of an older tarball
         shutil.rmtree(cache, ignore_errors=True)
@@ -335,9 +372,9 @@ def _check_bandai_json(f: Path, content: str, style: str, contents: list[str], s
         label = json.loads(j.read_text())
         c, s = contents[int(label["content"])], styles[int(label["style"])]
     except (ValueError, KeyError, IndexError, TypeError) as e:
-        raise ValueError(f"{j}: bad label file ({type(e).__name__}: {e})") from None
+        raise DataError(j, f"bad label file ({type(e).__name__}: {e})") from None
     if (c, s) != (content, style):
-        raise ValueError(f"{j}: labels say content {c!r} style {s!r}, file name says {content!r} {style!r}")
+        raise DataError(j, f"labels say content {c!r} style {s!r}, file name says {content!r} {style!r}")
 
 
 def load_bvh_folder(
@@ -350,28 +387,33 @@ def load_bvh_folder(
     t_pred: int | None = None,
     mm_threshold: float = 0.5,
     name: str | None = None,
+    root: str | None = None,
 ) -> MotionDataset:
     """Returns a dataset of every `*.bvh` under `path` (recursively, sorted by path).
 
-    All joints are kept except a ground node: a root with a zero offset, exactly one child and
-    constant channels (e.g. Bandai's `joint_Root`). `scale` converts file units to metres; None
-    means `formats.bvh.guess_scale` (CMU's cgspeed skeleton is recognised, 0.056444 m/unit).
+    The dataset's root joint is decided once for the folder, from the skeleton: `root` names it (the
+    joints above it must be a chain of single children, and are dropped), else a ground node is dropped
+    when the skeleton has one (`formats.bvh.is_ground_skeleton`: a zero-offset root with exactly one
+    child that carries the body, e.g. Bandai's `joint_Root`), whether or not it moves in a clip.
+    `scale` converts file units to metres; None means `formats.bvh.guess_scale` (CMU's cgspeed skeleton
+    is recognised, 0.056444 m/unit).
     `split(file)` returns "train", "test" or None (skip the file); by default every file is test. Every
     `downsample`-th frame is kept. `t_his` / `t_pred` default to 0.5 s / 2 s at the resulting
     frame rate, as for Human3.6M and Bandai. A sequence's subject is the file stem before its first
     `_` (CMU's `SS_TT` naming) and its action the whole stem. All files must share one skeleton
-    and frame rate.
+    (joint names and parents) and frame rate; positions with NaN/inf are a `DataError` naming the
+    file and frame.
     """
-    root = Path(path).expanduser()
-    if not root.is_dir():
-        raise FileNotFoundError(f"{root}: no such folder")
-    files = sorted(root.rglob("*.bvh"))
+    root_dir = Path(path).expanduser()
+    if not root_dir.is_dir():
+        raise FileNotFoundError(f"{root_dir}: no such folder")
+    files = sorted(root_dir.rglob("*.bvh"))
     if not files:
-        raise ValueError(f"{root}: no .bvh files")
+        raise DataError(root_dir, "no .bvh files")
     if downsample < 1:
         raise ValueError(f"load_bvh_folder: downsample must be >= 1, got {downsample}")
     train, test = [], []
-    skeleton, fps, first = None, None, None
+    skeleton, fps, first, drop = None, None, None, 0
     for f in files:
         which = "test" if split is None else split(f)
         if which not in ("train", "test", None):
@@ -379,24 +421,24 @@ def load_bvh_folder(
         if which is None:
             continue
         bvh = read_bvh(f)
-        file_scale = guess_scale(bvh) if scale is None else scale
-        names, parents, positions = _bvh_positions(bvh, file_scale, drop_root=is_ground_node(bvh))
-        positions = positions[::downsample]
-        f_fps = bvh.fps / downsample
         if skeleton is None:
-            skeleton, fps, first = Skeleton(names, parents), f_fps, f
-        elif (names, parents) != (skeleton.names, skeleton.parents):
-            raise ValueError(f"{f}: skeleton differs from {first}'s")
-        elif abs(f_fps - fps) > 0.01 * fps:
-            raise ValueError(f"{f}: {f_fps:.3f} fps but {first} has {fps:.3f}")
+            drop = _joints_above(bvh, root) if root is not None else int(is_ground_skeleton(bvh))
+            skeleton, fps, first = Skeleton(bvh.names, bvh.parents), bvh.fps / downsample, f
+        elif (bvh.names, bvh.parents) != (skeleton.names, skeleton.parents):
+            raise DataError(f, f"skeleton differs from {first}'s ({bvh.num_joints} vs {skeleton.num_joints} joints)")
+        elif abs(bvh.fps / downsample - fps) > 0.01 * fps:
+            raise DataError(f, f"{bvh.fps / downsample:.3f} fps but {first} has {fps:.3f}")
+        file_scale = guess_scale(bvh) if scale is None else scale
+        names, parents, positions = _bvh_positions(bvh, file_scale, drop)
         stem = f.stem
-        seq = Sequence(positions, fps, stem.split("_")[0], stem, name=str(f.relative_to(root)))
+        seq = Sequence(positions[::downsample], fps, stem.split("_")[0], stem, name=str(f.relative_to(root_dir)))
         (train if which == "train" else test).append(seq)
     if skeleton is None:
-        raise ValueError(f"{root}: split() skipped every file")
+        raise ValueError(f"{root_dir}: split() skipped every file")
+    skeleton = Skeleton(names, parents)
     fps = round(fps, 3)
     return MotionDataset(
-        name=name or root.name,
+        name=name or root_dir.name,
         skeleton=skeleton,
         fps=fps,
         t_his=t_his if t_his is not None else max(1, round(0.5 * fps)),
@@ -404,21 +446,39 @@ def load_bvh_folder(
         mm_threshold=mm_threshold,
         train=train,
         test=test,
-        info={"source": str(root), "up_axis": 1, "left_right_pairs": left_right_pairs(skeleton.names)},
+        info={"source": str(root_dir), "up_axis": 1, "left_right_pairs": left_right_pairs(skeleton.names)},
     )
 
 
+def _joints_above(bvh: Bvh, root: str) -> int:
+    """Returns how many joints precede joint `root`: its ancestors, which must each have exactly one child."""
+    if root not in bvh.names:
+        raise ValueError(f"load_bvh_folder: root={root!r} is not a joint of {bvh.path} (joints: {list(bvh.names[:8])}...)")
+    r = bvh.names.index(root)
+    for a in range(r):
+        children = [j for j, p in enumerate(bvh.parents) if p == a]
+        if children != [a + 1]:
+            raise ValueError(
+                f"load_bvh_folder: root={root!r}: joint {bvh.names[a]!r} above it in {bvh.path} has children "
+                f"{[bvh.names[j] for j in children]}; only a chain of single children can be dropped"
+            )
+    return r
+
+
 def _bvh_positions(
-    bvh: Bvh, scale: float, drop_root: bool
+    bvh: Bvh, scale: float, drop: int | bool
 ) -> tuple[tuple[str, ...], tuple[int, ...], np.ndarray]:
-    """Returns `(names, parents, positions (F, J, 3) float32 metres)`, without the root if asked."""
-    positions = forward_kinematics(bvh) * scale
-    if not drop_root:
-        return bvh.names, bvh.parents, positions.astype(np.float32)
-    keep = tuple(range(1, bvh.num_joints))
-    # The old root's only child becomes the root, so it is index 0 and its parent -1.
-    parents = tuple(-1 if p <= 0 else p - 1 for p in (bvh.parents[j] for j in keep))
-    return bvh.names[1:], parents, positions[:, 1:].astype(np.float32)
+    """Returns `(names, parents, positions (F, J, 3) float32 metres)` without the first `drop` joints (a chain).
+
+    Positions are checked finite: huge channel values overflow in forward kinematics or in float32.
+    """
+    with np.errstate(over="ignore", invalid="ignore"):  # reported just below, with the file and frame
+        positions = (forward_kinematics(bvh) * scale).astype(np.float32)
+    check_finite(bvh.path, positions, "positions after forward kinematics")
+    drop = int(drop)
+    # The first kept joint becomes the root, so it is index 0 and its parent -1.
+    parents = tuple(-1 if p < drop else p - drop for p in bvh.parents[drop:])
+    return bvh.names[drop:], parents, positions[:, drop:]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -443,8 +503,8 @@ def load_dataset(spec: str | os.PathLike, **options) -> MotionDataset:
             return _h36m_from_dict(data, path)
         if keys and all(re.fullmatch(r"(Train|Validate)/S\d+", str(k)) for k in keys):
             return _humaneva_from_dict(data, path)
-        raise ValueError(
-            f"{path}: 'positions_3d' keys {sorted(map(str, keys))[:5]} are neither Human3.6M subjects "
+        raise DataError(
+            path, f"'positions_3d' keys {sorted(map(str, keys))[:5]} are neither Human3.6M subjects "
             "('S1', ...) nor HumanEva-I ('Train/S1', 'Validate/S1', ...)"
         )
     if path.is_dir():
@@ -459,7 +519,7 @@ def load_dataset(spec: str | os.PathLike, **options) -> MotionDataset:
             return load_bandai(path, **options)
         if any(path.rglob("*.bvh")):
             return load_bvh_folder(path, **options)
-        raise ValueError(f"{path}: folder has neither {BANDAI_TARBALL} nor .bvh files")
+        raise DataError(path, f"folder has neither {BANDAI_TARBALL} nor .bvh files")
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such file or folder")
-    raise ValueError(f"{path}: expected a .npz file or a folder of BVH files")
+    raise DataError(path, "expected a .npz file or a folder of BVH files")

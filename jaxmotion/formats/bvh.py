@@ -10,7 +10,8 @@ rotation is `Rz @ Rx @ Ry`. Position channels, on any joint, replace that joint'
     positions *= guess_scale(bvh)                # metres (CMU's cgspeed units are recognised)
 
 `is_ground_node(bvh)` tells whether the root is a constant ground node (Bandai's `joint_Root`),
-which dataset loaders and body models drop. Only numpy: this module sits below `body/` and `data/`.
+which body models drop; `is_ground_skeleton(bvh)` decides it from the skeleton alone, once for a
+folder of clips (`data.datasets.load_bvh_folder`). Only numpy: this module sits below `body/` and `data/`.
 """
 
 from __future__ import annotations
@@ -20,6 +21,8 @@ import os
 from pathlib import Path
 
 import numpy as np
+
+from jaxmotion.errors import DataError
 
 _POSITION_AXES = {"Xposition": 0, "Yposition": 1, "Zposition": 2}
 _ROTATION_AXES = {"Xrotation": 0, "Yrotation": 1, "Zrotation": 2}
@@ -69,9 +72,10 @@ class Bvh:
 def read_bvh(path: str | os.PathLike) -> Bvh:
     """Returns the parsed BVH file at `path`.
 
-    Raises FileNotFoundError if it does not exist and ValueError naming the file if it is
-    malformed: no HIERARCHY or MOTION, unknown channels, fewer motion rows than `Frames:` says,
-    a row with the wrong number of values, non-numeric values, NaN or inf.
+    Raises FileNotFoundError if it does not exist and `jaxmotion.errors.DataError` (a ValueError)
+    naming the file if it is malformed: no HIERARCHY or MOTION, unknown channels, fewer motion rows
+    than `Frames:` says, a row with the wrong number of values, non-numeric values, NaN or inf (with
+    the frame and channel).
     """
     path = Path(path)
     if not path.is_file():
@@ -82,16 +86,16 @@ def read_bvh(path: str | os.PathLike) -> Bvh:
     try:
         h0 = stripped.index("HIERARCHY")
     except ValueError:
-        raise ValueError(f"{path}: no HIERARCHY section; not a BVH file") from None
+        raise DataError(path, "no HIERARCHY section; not a BVH file") from None
     try:
         m0 = stripped.index("MOTION", h0)
     except ValueError:
-        raise ValueError(f"{path}: no MOTION section (file truncated?)") from None
+        raise DataError(path, "no MOTION section (file truncated?)") from None
 
     names, parents, offsets, channels = _parse_hierarchy(path, stripped[h0 + 1 : m0])
-    num_channels = sum(len(c) for c in channels)
+    channel_names = [f"{n}:{c}" for n, chans in zip(names, channels) for c in chans]
     num_frames, frame_time, rows = _parse_motion_header(path, stripped, m0)
-    motion = _parse_motion_rows(path, lines[rows:], num_frames, num_channels)
+    motion = _parse_motion_rows(path, lines[rows:], num_frames, channel_names)
     return Bvh(
         names=tuple(names),
         parents=tuple(parents),
@@ -117,15 +121,15 @@ def _parse_hierarchy(path: Path, lines: list[str]):
             continue
         tokens = line.split()
         key = tokens[0]
-        where = f"{path}: HIERARCHY line {n + 1} ({line!r})"
+        where = f"HIERARCHY line {n + 1} ({line!r})"
         if key in ("ROOT", "JOINT"):
             if len(tokens) < 2:
-                raise ValueError(f"{where}: joint without a name")
+                raise DataError(path, f"{where}: joint without a name")
             if key == "JOINT" and not stack:
-                raise ValueError(f"{where}: JOINT outside of any ROOT")
+                raise DataError(path, f"{where}: JOINT outside of any ROOT")
             parent = -1 if key == "ROOT" else stack[-1]
             if parent is None:
-                raise ValueError(f"{where}: JOINT inside an End Site")
+                raise DataError(path, f"{where}: JOINT inside an End Site")
             names.append(" ".join(tokens[1:]))
             parents.append(parent)
             offsets.append([0.0, 0.0, 0.0])
@@ -135,47 +139,47 @@ def _parse_hierarchy(path: Path, lines: list[str]):
             pending, expecting_brace = None, True
         elif key == "{":
             if not expecting_brace:
-                raise ValueError(f"{where}: '{{' without a joint")
+                raise DataError(path, f"{where}: '{{' without a joint")
             stack.append(pending)
             expecting_brace = False
         elif key == "}":
             if not stack:
-                raise ValueError(f"{where}: unbalanced '}}'")
+                raise DataError(path, f"{where}: unbalanced '}}'")
             stack.pop()
         elif key == "OFFSET":
             if not stack:
-                raise ValueError(f"{where}: OFFSET outside of a joint")
+                raise DataError(path, f"{where}: OFFSET outside of a joint")
             if stack[-1] is None:
                 continue
             try:
                 values = [float(v) for v in tokens[1:]]
             except ValueError:
-                raise ValueError(f"{where}: non-numeric OFFSET") from None
+                raise DataError(path, f"{where}: non-numeric OFFSET") from None
             if len(values) != 3 or not np.all(np.isfinite(values)):
-                raise ValueError(f"{where}: OFFSET needs 3 finite numbers")
+                raise DataError(path, f"{where}: OFFSET needs 3 finite numbers")
             offsets[stack[-1]] = values
         elif key == "CHANNELS":
             if not stack or stack[-1] is None:
-                raise ValueError(f"{where}: CHANNELS outside of a joint")
+                raise DataError(path, f"{where}: CHANNELS outside of a joint")
             try:
                 count = int(tokens[1])
             except (IndexError, ValueError):
-                raise ValueError(f"{where}: CHANNELS needs a count") from None
+                raise DataError(path, f"{where}: CHANNELS needs a count") from None
             chans = tokens[2:]
             if len(chans) != count:
-                raise ValueError(f"{where}: CHANNELS says {count} but lists {len(chans)}")
+                raise DataError(path, f"{where}: CHANNELS says {count} but lists {len(chans)}")
             unknown = [c for c in chans if c not in _POSITION_AXES and c not in _ROTATION_AXES]
             if unknown:
-                raise ValueError(f"{where}: unknown channels {unknown}")
+                raise DataError(path, f"{where}: unknown channels {unknown}")
             channels[stack[-1]] = chans
         else:
-            raise ValueError(f"{where}: unexpected keyword {key!r}")
+            raise DataError(path, f"{where}: unexpected keyword {key!r}")
     if stack:
-        raise ValueError(f"{path}: HIERARCHY has {len(stack)} unclosed '{{'")
+        raise DataError(path, f"HIERARCHY has {len(stack)} unclosed '{{'")
     if not names:
-        raise ValueError(f"{path}: HIERARCHY defines no joints")
+        raise DataError(path, "HIERARCHY defines no joints")
     if parents.count(-1) != 1:
-        raise ValueError(f"{path}: expected exactly one ROOT, found {parents.count(-1)}")
+        raise DataError(path, f"expected exactly one ROOT, found {parents.count(-1)}")
     return names, parents, offsets, channels
 
 
@@ -183,55 +187,57 @@ def _parse_motion_header(path: Path, stripped: list[str], m0: int) -> tuple[int,
     """Returns `(num_frames, frame_time, index of the first motion row)`."""
     header = [(i, s) for i, s in enumerate(stripped[m0 + 1 :], start=m0 + 1) if s][:2]
     if len(header) < 2:
-        raise ValueError(f"{path}: MOTION lacks 'Frames:' and 'Frame Time:' lines (file truncated?)")
+        raise DataError(path, "MOTION lacks 'Frames:' and 'Frame Time:' lines (file truncated?)")
     (_, frames_line), (ft_index, ft_line) = header
     try:
         if not frames_line.startswith("Frames:"):
             raise ValueError
         num_frames = int(frames_line.split(":", 1)[1])
     except ValueError:
-        raise ValueError(f"{path}: expected 'Frames: N' after MOTION, got {frames_line!r}") from None
+        raise DataError(path, f"expected 'Frames: N' after MOTION, got {frames_line!r}") from None
     try:
         if not ft_line.startswith("Frame Time:"):
             raise ValueError
         frame_time = float(ft_line.split(":", 1)[1])
     except ValueError:
-        raise ValueError(f"{path}: expected 'Frame Time: dt' after 'Frames:', got {ft_line!r}") from None
+        raise DataError(path, f"expected 'Frame Time: dt' after 'Frames:', got {ft_line!r}") from None
     if num_frames < 0:
-        raise ValueError(f"{path}: negative frame count {num_frames}")
-    if not (frame_time > 0 and np.isfinite(frame_time)):
-        raise ValueError(f"{path}: Frame Time must be positive, got {frame_time}")
+        raise DataError(path, f"negative frame count {num_frames}")
+    # 1e-6 s (1 MHz) is far above any capture rate; a smaller frame time is a corrupt header.
+    if not (1e-6 <= frame_time < 1e6):
+        raise DataError(path, f"Frame Time must be a positive number of seconds (1e-6 to 1e6), got {frame_time}")
     return num_frames, frame_time, ft_index + 1
 
 
-def _parse_motion_rows(path: Path, lines: list[str], num_frames: int, num_channels: int) -> np.ndarray:
+def _parse_motion_rows(path: Path, lines: list[str], num_frames: int, channel_names: list[str]) -> np.ndarray:
+    num_channels = len(channel_names)
     rows = [line.split() for line in lines]
     rows = [r for r in rows if r]
     if len(rows) < num_frames:
-        raise ValueError(f"{path}: 'Frames: {num_frames}' but only {len(rows)} motion rows (file truncated?)")
+        raise DataError(path, f"'Frames: {num_frames}' but only {len(rows)} motion rows (file truncated?)")
     if len(rows) > num_frames:
-        raise ValueError(f"{path}: 'Frames: {num_frames}' but {len(rows)} motion rows")
+        raise DataError(path, f"'Frames: {num_frames}' but {len(rows)} motion rows")
     bad = [i for i, r in enumerate(rows) if len(r) != num_channels]
     if bad:
-        raise ValueError(
-            f"{path}: motion row {bad[0]} has {len(rows[bad[0]])} values, expected {num_channels} "
+        raise DataError(
+            path, f"motion row {bad[0]} has {len(rows[bad[0]])} values, expected {num_channels} "
             f"(HIERARCHY channels); {len(bad)} bad rows (file truncated?)"
         )
     if num_frames == 0:
         return np.zeros((0, num_channels))
     try:
         motion = np.array(rows, dtype=np.float64)
-    except ValueError:
+    except ValueError as e:
         for i, r in enumerate(rows):
             for v in r:
                 try:
                     float(v)
                 except ValueError:
-                    raise ValueError(f"{path}: non-numeric value {v!r} in motion row {i}") from None
-        raise
+                    raise DataError(path, f"non-numeric value {v!r} at frame {i} (motion row {i})") from None
+        raise DataError(path, f"motion values are not numbers ({e})") from None
     if not np.all(np.isfinite(motion)):
-        i = int(np.argwhere(~np.isfinite(motion))[0, 0])
-        raise ValueError(f"{path}: NaN or inf in motion row {i}")
+        i, c = (int(v) for v in np.argwhere(~np.isfinite(motion))[0])
+        raise DataError(path, f"non-finite value {motion[i, c]} at frame {i} (motion row {i}), channel {channel_names[c]}")
     return motion
 
 
@@ -271,7 +277,7 @@ def forward_kinematics(bvh: Bvh, frames: np.ndarray | slice | list[int] | None =
     positions = np.empty((num_frames, bvh.num_joints, 3))
     for j, (parent, chans, start) in enumerate(zip(bvh.parents, bvh.channels, bvh.channel_starts)):
         if parent >= j:
-            raise ValueError(f"{bvh.path}: joint {j} listed before its parent {parent}")
+            raise DataError(bvh.path, f"joint {j} listed before its parent {parent}")
         local_t = np.broadcast_to(bvh.offsets[j], (num_frames, 3)).copy()
         rot_cols, rot_axes = [], ""
         for k, name in enumerate(chans):
@@ -306,11 +312,28 @@ def guess_scale(bvh: Bvh) -> float:
         rest[j] = bvh.offsets[j] + (rest[p] if p >= 0 else 0.0)
     if is_ground_node(bvh):
         rest = rest[1:]  # the body's offset from a ground node says nothing about its size
-    size = float(np.max(np.linalg.norm(rest[:, None] - rest[None], axis=-1)))
+    with np.errstate(over="ignore", invalid="ignore"):  # huge offsets: an inf size, reported below
+        size = float(np.max(np.linalg.norm(rest[:, None] - rest[None], axis=-1)))
     for lo, s in ((0.5, 1.0), (50.0, 0.01), (500.0, 0.001)):
         if lo <= size < 10 * lo:
             return s
-    raise ValueError(f"{bvh.path}: cannot guess units from a rest-pose size of {size:.3g}; pass scale=")
+    raise DataError(bvh.path, f"cannot guess units from a rest-pose size of {size:.3g}; pass scale=")
+
+
+def is_ground_skeleton(bvh: Bvh) -> bool:
+    """Returns whether the skeleton's root is a ground node, judged by the skeleton alone (not the motion).
+
+    A ground node has a zero offset and exactly one child that carries the body: the child has
+    position channels of its own, or a zero offset (so the root adds no point of its own). Bandai's
+    `joint_Root` is one; CMU's `Hips` (three children) is not. Decide it once for a folder of clips
+    from one exporter: `is_ground_node` also asks for constant channels, which a clip in which the
+    ground node carries the walk does not have.
+    """
+    children = [j for j, p in enumerate(bvh.parents) if p == 0]
+    if len(children) != 1 or np.any(bvh.offsets[0] != 0):
+        return False
+    c = children[0]
+    return any(ch in _POSITION_AXES for ch in bvh.channels[c]) or bool(np.all(bvh.offsets[c] == 0))
 
 
 def is_ground_node(bvh: Bvh) -> bool:

@@ -16,10 +16,13 @@ Only points are read; analog channels are skipped. Tested on Vicon Intel-float f
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from pathlib import Path
 
 import numpy as np
+
+from jaxmotion.errors import DataError
 
 _UNIT_TO_METRES = {"mm": 1e-3, "cm": 1e-2, "m": 1.0, "dm": 0.1}
 
@@ -70,7 +73,7 @@ def _parse_parameters(path: Path, buf: bytes, start: int, endian: str, dec: bool
         return np.frombuffer(buf, endian + "i2", 1, o)[0].item()
 
     if start + 4 > len(buf):
-        raise ValueError(f"{path}: parameter section starts past the end of the file (truncated?)")
+        raise DataError(path, "parameter section starts past the end of the file (truncated?)")
     groups: dict[int, str] = {}
     items = []
     o = start + 4
@@ -82,23 +85,25 @@ def _parse_parameters(path: Path, buf: bytes, start: int, endian: str, dec: bool
         name = buf[o + 2 : o + 2 + n].decode("latin-1").strip().upper()
         p = o + 2 + n
         if p + 2 > len(buf):
-            raise ValueError(f"{path}: parameter {name!r} runs past the end of the file (truncated?)")
+            raise DataError(path, f"parameter {name!r} runs past the end of the file (truncated?)")
         nxt = i16(p)
         if gid < 0:
             groups[-gid] = name
         else:
-            t, nd = i8(p + 2), np.frombuffer(buf, np.uint8, 1, p + 3)[0].item()
-            dims = tuple(np.frombuffer(buf, np.uint8, nd, p + 4).tolist())
+            if p + 4 > len(buf) or p + 4 + buf[p + 3] > len(buf):
+                raise DataError(path, f"parameter {name!r} runs past the end of the file (truncated?)")
+            t, nd = i8(p + 2), buf[p + 3]
+            dims = tuple(buf[p + 4 : p + 4 + nd])
             d = p + 4 + nd
-            size = abs(t) * int(np.prod(dims)) if dims else abs(t)
+            size = abs(t) * math.prod(dims)
             if t not in (-1, 1, 2, 4) or d + size > len(buf):
-                raise ValueError(f"{path}: parameter {name!r} has a bad type {t} or runs past the end of the file")
+                raise DataError(path, f"parameter {name!r} has a bad type {t} or runs past the end of the file")
             data = buf[d : d + size]
             if t == -1:
                 if len(dims) <= 1:
                     value = data.decode("latin-1").strip()
                 else:
-                    w = dims[0]
+                    w = max(dims[0], 1)
                     value = [data[i : i + w].decode("latin-1").strip() for i in range(0, len(data), w)]
             elif t == 1:
                 value = np.frombuffer(data, np.int8).copy()
@@ -110,6 +115,8 @@ def _parse_parameters(path: Path, buf: bytes, start: int, endian: str, dec: bool
             items.append((gid, name, value))
         if nxt == 0:
             break
+        if p + nxt <= o:  # a pointer backwards would loop forever
+            raise DataError(path, f"parameter {name!r} points back to offset {p + nxt} (corrupt parameter section)")
         o = p + nxt
     params = _Params()
     for gid, name, value in items:
@@ -117,53 +124,68 @@ def _parse_parameters(path: Path, buf: bytes, start: int, endian: str, dec: bool
     return params
 
 
-def _scalar(params: _Params, key: str, default=None):
+def _number(path: Path, params: _Params, key: str, default) -> float:
+    """Returns the first value of numeric parameter `key` (`default` when absent or empty), finite or a DataError."""
     v = params.get(key, default)
     if isinstance(v, np.ndarray):
-        return v.reshape(-1)[0].item() if v.size else default
+        v = v.reshape(-1)[0].item() if v.size else default
+    if isinstance(v, (str, list)):
+        raise DataError(path, f"parameter {key} must be a number, got the text {v!r}")
+    v = float(v)
+    if not math.isfinite(v):
+        raise DataError(path, f"parameter {key} is {v}")
     return v
 
 
 def read_c3d(path: str | os.PathLike) -> C3D:
     """Returns the labelled points of the C3D file at `path`, in metres, gaps as NaN and `mask` False.
 
-    Raises FileNotFoundError if it does not exist and ValueError naming the file when it is not a
-    C3D file or is truncated or inconsistent (labels vs point count, data past the end).
+    Raises FileNotFoundError if it does not exist and `jaxmotion.errors.DataError` (a ValueError)
+    naming the file when it is not a C3D file or is truncated or inconsistent (labels vs point count,
+    data past the end, a NaN or zero scale, a rate that is not positive). Non-finite coordinates are
+    gaps, as are points whose residual word is negative.
     """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: C3D file not found")
     buf = path.read_bytes()
     if len(buf) < 512 or buf[1] != 0x50:
-        raise ValueError(f"{path}: not a C3D file (no 0x50 key in the header's second byte)")
+        raise DataError(path, "not a C3D file (no 0x50 key in the header's second byte)")
     pblock = buf[0]
     pstart = (pblock - 1) * 512
     if pblock < 1 or pstart + 4 > len(buf):
-        raise ValueError(f"{path}: C3D header points to parameter block {pblock} past the end of the file")
+        raise DataError(path, f"C3D header points to parameter block {pblock} past the end of the file")
     proc = buf[pstart + 3]
     if proc not in (84, 85, 86):
-        raise ValueError(f"{path}: unknown C3D processor type {proc} (expected 84 Intel, 85 DEC, 86 MIPS)")
+        raise DataError(path, f"unknown C3D processor type {proc} (expected 84 Intel, 85 DEC, 86 MIPS)")
     endian, dec = (">" if proc == 86 else "<"), proc == 85
     hdr = np.frombuffer(buf, endian + "i2", 256, 0)
     params = _parse_parameters(path, buf, pstart, endian, dec)
 
-    num_points = int(_scalar(params, "POINT:USED", hdr[1]))
+    num_points = int(_number(path, params, "POINT:USED", hdr[1]))
     if num_points < 0:
         num_points += 65536
     analog_words = int(hdr[2])
+    if analog_words < 0:
+        raise DataError(path, f"header says {analog_words} analog words per frame")
     first, last = int(hdr[3]) & 0xFFFF, int(hdr[4]) & 0xFFFF
     frames = last - first + 1
     if "POINT:FRAMES" in params:  # the header's 16-bit frame numbers overflow on long trials
-        pf = _scalar(params, "POINT:FRAMES")
-        frames = int(pf) if pf >= 0 else int(pf) + 65536
-    scale = float(_scalar(params, "POINT:SCALE", np.frombuffer(buf, endian + "f4", 1, 12)[0]))
-    rate = float(_scalar(params, "POINT:RATE", np.frombuffer(buf, endian + "f4", 1, 20)[0]))
-    dstart = int(_scalar(params, "POINT:DATA_START", hdr[8]))
+        pf = int(_number(path, params, "POINT:FRAMES", 0))
+        frames = pf if pf >= 0 else pf + 65536
+    scale = _number(path, params, "POINT:SCALE", np.frombuffer(buf, endian + "f4", 1, 12)[0])
+    if scale == 0:
+        raise DataError(path, "POINT:SCALE is 0 (every point would be at the origin)")
+    rate = _number(path, params, "POINT:RATE", np.frombuffer(buf, endian + "f4", 1, 20)[0])
+    if rate <= 0:
+        raise DataError(path, f"POINT:RATE must be positive, got {rate}")
+    dstart = int(_number(path, params, "POINT:DATA_START", hdr[8]))
     if dstart < 0:
         dstart += 65536
-    units = str(params.get("POINT:UNITS", "mm")).strip().lower() or "mm"
+    units = params.get("POINT:UNITS", "mm")
+    units = (units.strip().lower() or "mm") if isinstance(units, str) else repr(units)
     if units not in _UNIT_TO_METRES:
-        raise ValueError(f"{path}: unknown POINT:UNITS {units!r} (known: {sorted(_UNIT_TO_METRES)})")
+        raise DataError(path, f"unknown POINT:UNITS {units!r} (known: {sorted(_UNIT_TO_METRES)})")
 
     labels: list[str] = []
     for key in ["POINT:LABELS"] + [f"POINT:LABELS{i}" for i in range(2, 100)]:
@@ -171,8 +193,10 @@ def read_c3d(path: str | os.PathLike) -> C3D:
             break
         v = params[key]
         labels += v if isinstance(v, list) else [v]
+    if not all(isinstance(label, str) for label in labels):
+        raise DataError(path, "POINT:LABELS must be text")
     if len(labels) < num_points:
-        raise ValueError(f"{path}: {num_points} points but only {len(labels)} POINT:LABELS")
+        raise DataError(path, f"{num_points} points but only {len(labels)} POINT:LABELS")
     labels = labels[:num_points]
 
     word = 4 if scale < 0 else 2
@@ -180,8 +204,8 @@ def read_c3d(path: str | os.PathLike) -> C3D:
     d0 = (dstart - 1) * 512
     need = d0 + frame_bytes * frames
     if frames < 0 or d0 < 0 or need > len(buf):
-        raise ValueError(
-            f"{path}: data of {frames} frames x {num_points} points needs {need} bytes, the file has {len(buf)} (truncated?)"
+        raise DataError(
+            path, f"data of {frames} frames x {num_points} points needs {need} bytes, the file has {len(buf)} (truncated?)"
         )
     block = np.frombuffer(buf, np.uint8, frame_bytes * frames, d0).reshape(frames, frame_bytes)
     pts = block[:, : word * 4 * num_points].copy().reshape(-1)

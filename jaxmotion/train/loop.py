@@ -1,17 +1,22 @@
 """The one training loop: a pure `train_step(state, batch, key) -> (state, metrics)` jitted once.
 
-Checkpoints are written with orbax every `ckpt_every` steps and at the end; `resume=True`
-continues from the latest one. The data stream is a function of `(seed, step)`, so a resumed run
-sees exactly the batches an uninterrupted run would have seen. Batches are placed with a
+Checkpoints are written with orbax every `ckpt_every` steps and at the end (the last two are kept);
+`resume=True` continues from the newest one that restores: a truncated or half-written newest
+checkpoint is moved to `ckpt.unreadable/` (nothing is deleted) and training resumes from the one
+before it, with a warning naming both steps. The data stream is a function of `(seed, step)`, so a
+resumed run sees exactly the batches, and logs exactly the lines, an uninterrupted run would have. Batches are placed with a
 `NamedSharding` over a one-axis device mesh named "data", so the same loop data-parallelises over
 several devices; on one device it is a no-op.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
+import os
 import time
+import warnings
 from pathlib import Path
 from collections.abc import Callable
 from typing import Any
@@ -24,6 +29,8 @@ import orbax.checkpoint as ocp
 from flax import struct
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from tqdm.auto import tqdm
+
+from jaxmotion.errors import CheckpointError
 
 
 class TrainState(struct.PyTreeNode):
@@ -124,23 +131,41 @@ def fit(
 
     `sample_batch(rng)` returns one batch (a pytree of numpy arrays whose leading axis is the
     batch); it is called with `np.random.default_rng([seed, step])`. Metrics go to stdout (through
-    the progress bar) and to `workdir/log.jsonl`. A non-finite loss stops training with an error
-    that names the step; the checkpoints written before it are kept.
+    the progress bar) and to `workdir/log.jsonl`; on resume, lines past the restored step (written
+    before a kill) move to `log.replaced.jsonl`, as the resumed run writes them again. A non-finite
+    loss stops training with an error that names the step; the checkpoints written before it are
+    kept. A checkpoint that cannot be written (read-only folder, full disk) is a `CheckpointError`
+    naming the folder and the step kept.
     """
     workdir = Path(workdir).absolute()
     workdir.mkdir(parents=True, exist_ok=True)
-    mngr = ocp.CheckpointManager(
-        workdir / "ckpt",
-        options=ocp.CheckpointManagerOptions(max_to_keep=2, save_interval_steps=ckpt_every),
-    )
+    ckpt = workdir / "ckpt"
+    mngr = _manager(ckpt, ckpt_every)
     latest = mngr.latest_step()
     if latest is not None:
         if not resume:
             raise FileExistsError(
-                f"{workdir / 'ckpt'} already holds checkpoints (latest step {latest}); "
+                f"{ckpt} already holds checkpoints (latest step {latest}); "
                 "pass --resume to continue from it, or choose another --workdir"
             )
-        state = _restore(mngr, latest, state)
+        restored, step, bad = _restore_newest(ckpt, mngr.all_steps(), state)
+        if restored is None:
+            mngr.close()
+            raise CheckpointError(
+                f"{ckpt}: no checkpoint restores (" + "; ".join(f"step {s}: {e}" for s, e in bad) + "); nothing "
+                f"was deleted: move {ckpt} away to train this stage from scratch"
+            )
+        if bad:
+            mngr.close()
+            aside = _move_aside(ckpt, [s for s, _ in bad])
+            warnings.warn(
+                f"{ckpt}: checkpoint step {bad[0][0]} is unreadable ({bad[0][1]}); resuming from step {step}, the newest "
+                f"that restores; moved the unreadable checkpoint(s) to {aside} (nothing deleted)",
+                stacklevel=2,
+            )
+            mngr = _manager(ckpt, ckpt_every)
+        state = restored
+        _replace_log_after(workdir / "log.jsonl", step)
     mesh = data_mesh()
     replicated = NamedSharding(mesh, PartitionSpec())
     batch_sharding = NamedSharding(mesh, PartitionSpec("data"))
@@ -151,8 +176,7 @@ def fit(
     start = int(state.step)
     if start >= num_steps:
         if latest is None:  # a stage with nothing to train still leaves its (computed) parameters
-            mngr.save(start, args=ocp.args.StandardSave(state.replace(frozen=None)), force=True)
-            mngr.wait_until_finished()
+            _save(mngr, ckpt, start, state, force=True, wait=True)
         mngr.close()
         return state
     t0 = time.perf_counter()
@@ -167,7 +191,7 @@ def fit(
             if done % log_every == 0 or done == num_steps:
                 m = {k: float(v) for k, v in jax.device_get(metrics).items()}
                 if not math.isfinite(m["loss"]):
-                    mngr.wait_until_finished()
+                    _save(mngr, ckpt, None, None, wait=True)
                     raise FloatingPointError(
                         f"{desc}: non-finite loss {m['loss']} at step {done}; "
                         f"last checkpoint: step {mngr.latest_step()} in {workdir / 'ckpt'}"
@@ -175,24 +199,114 @@ def fit(
                 log.write(json.dumps({"stage": desc, "step": done, "time_s": time.perf_counter() - t0, **m}) + "\n")
                 log.flush()
                 bar.set_postfix({k: f"{v:.4g}" for k, v in m.items() if k in ("loss", "recon", "kld", "div")})
-            mngr.save(done, args=ocp.args.StandardSave(state.replace(frozen=None)))
+            _save(mngr, ckpt, done, state)
             bar.update(1)
     if mngr.latest_step() != num_steps:
-        mngr.save(num_steps, args=ocp.args.StandardSave(state.replace(frozen=None)), force=True)
-    mngr.wait_until_finished()
+        _save(mngr, ckpt, num_steps, state, force=True)
+    _save(mngr, ckpt, None, None, wait=True)
     mngr.close()
     return state
 
 
+def _manager(ckpt: Path, ckpt_every: int = 1) -> ocp.CheckpointManager:
+    # Synchronous writes: a failed asynchronous one (read-only folder, full disk) is reported only at the
+    # next save, and leaves orbax threads that keep the process from exiting for up to 10 minutes.
+    options = ocp.CheckpointManagerOptions(max_to_keep=2, save_interval_steps=ckpt_every, enable_async_checkpointing=False)
+    return ocp.CheckpointManager(ckpt, options=options)
+
+
+def _save(mngr: ocp.CheckpointManager, ckpt: Path, step: int | None, state: TrainState | None, *, force=False, wait=False):
+    """Saves `state` as checkpoint `step` (None: only waits), raising `CheckpointError` naming the folder on failure.
+
+    Orbax writes into a temporary folder and renames it when complete, so a failed or killed write
+    leaves the checkpoints before it as they were.
+    """
+    try:
+        if step is not None:
+            mngr.save(step, args=ocp.args.StandardSave(state.replace(frozen=None)), force=force)
+        if wait:
+            mngr.wait_until_finished()
+    except Exception as e:
+        with contextlib.suppress(Exception):  # its background writer would otherwise keep the process alive
+            mngr.close()
+        kept = sorted(int(p.name) for p in ckpt.iterdir() if p.name.isdigit()) if ckpt.is_dir() else []
+        raise CheckpointError(
+            f"{ckpt}: cannot write checkpoint{'' if step is None else f' step {step}'} ({_brief(e)}); "
+            f"the checkpoints kept there: steps {kept}"
+        ) from e
+
+
+def _brief(e: BaseException) -> str:
+    first = (str(e).strip().splitlines() or [""])[0]
+    return f"{type(e).__name__}: {first[:240]}"
+
+
+def _restore_newest(ckpt: Path, steps, state: TrainState):
+    """Returns `(state, step, bad)`: the newest checkpoint in `ckpt` that restores (None, None if none does)
+    and the `(step, error)` of the newer ones that did not."""
+    bad = []
+    for step in sorted(steps, reverse=True):
+        # A manager per attempt: one that failed on a broken step folder also fails on the good ones.
+        mngr = ocp.CheckpointManager(ckpt)
+        try:
+            restored = _restore(mngr, step, state)
+            if int(restored.step) != step:
+                raise CheckpointError(f"it holds step {int(restored.step)}")
+            return restored, step, bad
+        except Exception as e:  # truncated files, a missing _METADATA, zeroed data: whatever orbax raises
+            bad.append((step, _brief(e)))
+        finally:
+            mngr.close()
+    return None, None, bad
+
+
+def _move_aside(ckpt: Path, steps: list[int]) -> Path:
+    """Moves the step folders `steps` of `ckpt` into `ckpt.unreadable/` (renamed, never deleted); returns that folder."""
+    aside = ckpt.with_name(ckpt.name + ".unreadable")
+    aside.mkdir(exist_ok=True)
+    for s in steps:
+        target, n = aside / str(s), 1
+        while target.exists():
+            target, n = aside / f"{s}-{n}", n + 1
+        os.replace(ckpt / str(s), target)
+    return aside
+
+
+def _replace_log_after(log: Path, step: int) -> None:
+    """Moves the log lines of steps after `step` (and a line cut by a kill) to `log.replaced.jsonl`."""
+    if not log.is_file():
+        return
+    keep, replaced = [], []
+    for line in log.read_text().splitlines(keepends=True):
+        try:
+            ok = line.endswith("\n") and json.loads(line)["step"] <= step
+        except (ValueError, KeyError, TypeError):
+            ok = False
+        (keep if ok else replaced).append(line)
+    if replaced:
+        with open(log.with_name("log.replaced.jsonl"), "a") as f:
+            f.write("".join(line if line.endswith("\n") else line + "\n" for line in replaced))
+        tmp = log.with_name(log.name + ".tmp")
+        tmp.write_text("".join(keep))
+        os.replace(tmp, log)
+
+
 def restore_params(workdir: str | Path, state: TrainState) -> TrainState:
-    """Returns the latest checkpointed state in `workdir/ckpt` (`state` gives the structure)."""
+    """Returns the latest checkpointed state in `workdir/ckpt` (`state` gives the structure).
+
+    Raises `CheckpointError` naming the step when it does not restore (unreadable, or another structure).
+    """
     ckpt = Path(workdir).absolute() / "ckpt"
     mngr = ocp.CheckpointManager(ckpt)
     latest = mngr.latest_step()
     if latest is None:
         raise FileNotFoundError(f"no checkpoint in {ckpt}; train first (jaxmotion train / run)")
-    restored = _restore(mngr, latest, state)
-    mngr.close()
+    try:
+        restored = _restore(mngr, latest, state)
+    except Exception as e:
+        raise CheckpointError(f"{ckpt}: checkpoint step {latest} does not restore ({_brief(e)})") from e
+    finally:
+        mngr.close()
     return restored
 
 

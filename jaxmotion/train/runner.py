@@ -9,18 +9,20 @@ names the stage and the mismatch, not a stack trace from the checkpoint library.
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 from typing import Any
 
 import jax
 
+from jaxmotion.errors import CheckpointError
 from jaxmotion.method import Method, Stage
 from jaxmotion.train.loop import TrainState, create_state, fit, make_bn_train_step, make_train_step, restore_params
 
 MANIFEST = "stage.json"
 
 
-class CheckpointMismatch(ValueError):
+class CheckpointMismatch(CheckpointError):
     """A stage folder holds another stage's or another method's checkpoints."""
 
 
@@ -112,7 +114,10 @@ def run_stage(
     stage_dir.mkdir(parents=True, exist_ok=True)
     manifest = stage_dir / MANIFEST
     if not manifest.exists():
-        manifest.write_text(json.dumps(_manifest(method, stage, state, upstream), indent=1))
+        # Written whole or not at all: a kill mid-write must not leave a manifest that stops `--resume`.
+        tmp = manifest.with_name(MANIFEST + ".tmp")
+        tmp.write_text(json.dumps(_manifest(method, stage, state, upstream), indent=1))
+        os.replace(tmp, manifest)
     state = fit(
         state, _train_step(stage), stage.batches or (lambda rng: None), num_steps=stage.num_steps, workdir=stage_dir,
         seed=stage.data_seed, resume=resume, ckpt_every=cfg.ckpt_every, log_every=cfg.log_every,
@@ -122,7 +127,12 @@ def run_stage(
 
 
 def restore_stage(method: Method, stage: Stage, workdir: str | Path, trained: dict[str, Any]):
-    """Returns one stage's parameters from the latest checkpoint in `workdir/<stage.name>`."""
+    """Returns one stage's parameters from the latest checkpoint in `workdir/<stage.name>`.
+
+    A checkpoint that does not restore although `stage.json` says it fits is unreadable (truncated,
+    half-written): a `CheckpointError` that points at `train --resume`, which falls back to the
+    checkpoint before it. Without `stage.json` it is reported as a mismatch.
+    """
     state = init_state(stage, trained)
     stage_dir = Path(workdir) / stage.name
     check_stage_dir(method, stage, state, stage_dir)
@@ -131,6 +141,11 @@ def restore_stage(method: Method, stage: Stage, workdir: str | Path, trained: di
     except FileNotFoundError as e:
         raise FileNotFoundError(f"stage {stage.name!r} of method {method.name!r}: {e}") from e
     except Exception as e:  # orbax reports a structure mismatch as a long tree diff
+        if (stage_dir / MANIFEST).exists():
+            raise CheckpointError(
+                f"stage {stage.name!r} of method {method.name!r}: {e}; its stage.json fits this config, so the "
+                "checkpoint is unreadable: `jaxmotion train --resume` falls back to the one before it and trains on"
+            ) from e
         raise CheckpointMismatch(
             f"stage {stage.name!r} of method {method.name!r}: the checkpoint in {stage_dir / 'ckpt'} does not "
             f"fit this config's parameters ({type(e).__name__}: {str(e).splitlines()[0][:300]})"
