@@ -6,6 +6,7 @@
     jaxmotion eval --config CFG [--data PATH] [--workdir DIR]
     jaxmotion sample --config CFG [--workdir DIR] --window 3 --k 50 --method dlow
     jaxmotion methods                               # the registered methods and their stages' settings type
+    jaxmotion predict RUN_DIR --input clip.bvh [--frame F] [--k K] [--method M] --out DIR   # your own motion
 """
 
 from __future__ import annotations
@@ -30,6 +31,8 @@ def _parser() -> argparse.ArgumentParser:
         s.add_argument("--data", default=None, help="'synthetic', a BVH folder, the Bandai-Namco-2 folder, or an H36M/HumanEva .npz")
         s.add_argument("--workdir", default=None, help="output directory (default: runs/<config name>)")
         s.add_argument("--seed", type=int, default=None, help="override the config's seed (initialisation, batches, evaluation draws)")
+        s.add_argument("--test-files", nargs="+", default=None, metavar="PATTERN",
+                       help="a plain BVH folder's test files (glob patterns on path, name or stem); default: by subject, else the last 20%% of files")
         if name in ("run", "train"):
             s.add_argument("--resume", action="store_true", help="continue from the latest checkpoints in --workdir")
         if name == "sample":
@@ -37,6 +40,16 @@ def _parser() -> argparse.ArgumentParser:
             s.add_argument("--k", type=int, default=None, help="number of futures (default: largest K of the config)")
             s.add_argument("--method", default=None, help="which sampler (default: the config's method; also cvae, zero_velocity)")
     sub.add_parser("methods", help="list the registered methods")
+    s = sub.add_parser("predict", help="K futures of your own clip (BVH or npz of joint positions) from a trained run")
+    s.add_argument("run_dir", help="a trained work directory (with predictor.json)")
+    s.add_argument("--input", required=True, help="a .bvh clip or an .npz with 'positions' (T, J, 3) [, 'names', 'fps', 'scale']")
+    s.add_argument("--frame", type=int, default=None,
+                   help="input frame that ends the observed window (default: the last one whose whole future is in the clip, else the last frame)")
+    s.add_argument("--k", type=int, default=None, help="number of futures (default: the run's largest K)")
+    s.add_argument("--method", default=None, help="which predictor (default: the run's method)")
+    s.add_argument("--scale", type=float, default=None, help="metres per file unit (default: guessed for BVH, 1 for npz)")
+    s.add_argument("--seed", type=int, default=0, help="seed of the sampling key")
+    s.add_argument("--out", required=True, help="output folder: futures.npz, future_NN.bvh, samples.gif")
     return p
 
 
@@ -53,8 +66,22 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     if args.command == "methods":
         return _list_methods()
+    if args.command == "predict":
+        from jaxmotion.predict_file import predict_file
+        from jaxmotion.predictor import load
+
+        from jaxmotion.errors import CheckpointError, DataError
+
+        try:
+            lines = predict_file(load(args.run_dir), args.input, args.out, frame=args.frame, k=args.k, method=args.method,
+                                 seed=args.seed, scale=args.scale)
+        except (DataError, CheckpointError, FileNotFoundError) as e:  # the user's file or run: the message says it all
+            print(f"jaxmotion predict: {e}", file=sys.stderr)
+            return 2
+        print("\n".join(lines))
+        return 0
     from jaxmotion import experiment
-    from jaxmotion.config import load_config
+    from jaxmotion.config import load_config, validate
 
     cfg = load_config(args.config)
     if args.seed is not None:
@@ -64,8 +91,9 @@ def main(argv: list[str] | None = None) -> int:
     cfg = experiment.resolve(cfg)
     workdir = Path(args.workdir or Path("runs") / cfg.name).absolute()
     t0 = time.perf_counter()
-    ds = experiment.load_data(cfg, args.data)
+    ds = experiment.load_data(cfg, args.data, args.test_files)
     prep = experiment.prepare(ds, cfg.max_test_windows, cfg.train_sampler)
+    validate(cfg, prep.sampler.num_windows, source=args.config or "the default config")
     label = ds.name
     print(
         f"data: {ds.name}: {len(ds.train)} train / {len(ds.test)} test sequences, D={ds.dim}, "
@@ -73,6 +101,8 @@ def main(argv: list[str] | None = None) -> int:
         f"{len(prep.windows)} test windows ({time.perf_counter() - t0:.1f}s)",
         flush=True,
     )
+    if "split" in ds.info:
+        print(f"split: {ds.info['split']}", flush=True)
     if args.command in ("run", "train"):
         params = experiment.train(cfg, prep, workdir, resume=args.resume)
     else:
@@ -80,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.command in ("run", "eval"):
         experiment.evaluate(cfg, prep, params, workdir, label)
         png = experiment.report(cfg, prep, params, workdir)
-        print(f"report: {workdir}  (metrics.json, {png.name}, checkpoints)  total {time.perf_counter() - t0:.0f}s")
+        print(f"report: {workdir}  (metrics.json, {png.name}, samples.gif, predictor.json, checkpoints)  total {time.perf_counter() - t0:.0f}s")
     elif args.command == "sample":
         import jax
         import jax.numpy as jnp

@@ -2,8 +2,9 @@
 
 Every step is also callable from Python. A work directory holds one folder per training stage
 (`cvae/`, `dlow_k50/`, ... each with `ckpt/`, `log.jsonl` and `stage.json`), `metrics.json`
-(PROTOCOL sec. 5 records, one per (predictor, K)) and `samples.png` (observed motion and K
-predicted futures). The method is looked up in the registry (`jaxmotion.method`) and its stages
+(PROTOCOL sec. 5 records, one per (predictor, K)), `samples.png` and `samples.gif` (observed motion
+and K predicted futures, still and animated) and `predictor.json` (what `jaxmotion.load` needs to
+predict from the run alone). The method is looked up in the registry (`jaxmotion.method`) and its stages
 are run by the one stage runner (`jaxmotion.train.runner`).
 """
 
@@ -21,10 +22,12 @@ import numpy as np
 
 from jaxmotion import metrics
 from jaxmotion.config import Config, to_dict
-from jaxmotion.data.datasets import load_dataset
+from jaxmotion.data.datasets import BANDAI_TARBALL, load_dataset
+from jaxmotion.data.folder_split import folder_split
 from jaxmotion.data.synthetic import make_synthetic
 from jaxmotion.data.types import MotionDataset
-from jaxmotion.data.windows import TrainSampler, canonicalise_windows, split_frames, test_windows
+from jaxmotion.data.windows import SAMPLER_WEIGHTINGS, TrainSampler, canonicalise_windows, split_frames, test_windows
+from jaxmotion.errors import DataError
 from jaxmotion.method import Method, Predictor
 from jaxmotion.methods import get_method
 from jaxmotion.train import runner
@@ -38,17 +41,36 @@ def resolve(cfg: Config) -> Config:
     return dataclasses.replace(cfg, method_config=get_method(cfg.method).settings(cfg))
 
 
-def load_data(cfg: Config, data: str | None = None) -> MotionDataset:
+def load_data(cfg: Config, data: str | None = None, test_files: list[str] | None = None) -> MotionDataset:
     """Returns the dataset named by `data` (a path) or else by `cfg.dataset` ("synthetic" or a path).
 
     `cfg.data_options` go to the loader (e.g. `{"markers": "bandai"}`: Bandai-Namco-2 as markers).
+    A plain folder of BVH clips (no dataset protocol) is split by `data.folder_split.folder_split`:
+    by subject where the file names carry one, else the last 20% of files are test; `test_files`
+    (glob patterns, `--test-files`) choose the test files. `info["split"]` says which way.
     """
     spec = data or cfg.dataset
     if spec == "synthetic":
-        if cfg.data_options:
-            raise ValueError(f"the synthetic dataset takes no data_options, got {sorted(cfg.data_options)}")
+        if cfg.data_options or test_files:
+            raise ValueError(f"the synthetic dataset takes no data_options or test files, got {sorted(cfg.data_options)} {test_files or ''}")
         return make_synthetic(cfg.seed)
-    return load_dataset(spec, **dict(cfg.data_options))
+    path = Path(spec).expanduser()
+    options = dict(cfg.data_options)
+    if _plain_bvh_folder(path) and "split" not in options:
+        split, how = folder_split(path, test_files)
+        ds = load_dataset(spec, split=lambda f: split.get(f, "test"), **options)
+        ds.info["split"] = how
+        return ds
+    if test_files:
+        raise ValueError(f"--test-files applies to a plain folder of BVH clips; {spec} has its own protocol split")
+    return load_dataset(spec, **options)
+
+
+def _plain_bvh_folder(path: Path) -> bool:
+    """Returns whether `path` is a folder of BVH files that no dataset protocol (Bandai-Namco-2) claims."""
+    if not path.is_dir() or (path / BANDAI_TARBALL).is_file() or any(path.glob("dataset-2_*.bvh")):
+        return False
+    return any(path.rglob("*.bvh"))
 
 
 @dataclasses.dataclass
@@ -81,8 +103,9 @@ def prepare(ds: MotionDataset, max_test_windows: int | None = None, train_sample
     Marker datasets' windows are canonicalised at their first frame (PROTOCOL sec. 4).
     """
     train, train_canon = split_frames(ds, "train")
-    sampler = TrainSampler(train, ds.t_total, train_canon, weighting=train_sampler)
     test, test_canon = split_frames(ds, "test")
+    check_lengths(ds, train, test, train_sampler)
+    sampler = TrainSampler(train, ds.t_total, train_canon, weighting=train_sampler)
     windows, seq_index, starts = test_windows(test, ds.t_his, ds.t_pred)
     if test_canon is not None:
         windows = canonicalise_windows(windows, np.stack([test_canon[i][s] for i, s in zip(seq_index, starts)]))
@@ -94,8 +117,36 @@ def prepare(ds: MotionDataset, max_test_windows: int | None = None, train_sample
     return Prepared(ds, sampler, windows, seq_index, starts, keep, train if train_canon is None else None)
 
 
+def check_lengths(ds: MotionDataset, train: list[np.ndarray], test: list[np.ndarray], train_sampler: str = "windows") -> None:
+    """Raises `DataError` saying how many sequences there are, how long the longest is and what the protocol needs,
+    when no training window or no test window fits (PROTOCOL sec. 3: test windows need T > t_total)."""
+    if train_sampler not in SAMPLER_WEIGHTINGS:
+        return  # TrainSampler names the choices
+    need = ds.t_total + (1 if train_sampler == "sequences" else 0)
+    if any(len(f) >= need for f in train) and any(len(f) > ds.t_total for f in test):
+        return
+    longest = lambda fs: max((len(f) for f in fs), default=0)  # noqa: E731
+    which = "training" if not any(len(f) >= need for f in train) else "test"
+    hint = ""
+    if "split" in ds.info:
+        hint = f" Split: {ds.info['split']}. Choose other test files with --test-files, or train at a lower frame rate (data_options={{'downsample': 4}}) or with shorter windows (data_options t_his / t_pred)."
+    raise DataError(
+        ds.info.get("source", ds.name),
+        f"no {which} window fits: {len(ds.train)} training sequences (longest {longest(train)} frames) and "
+        f"{len(ds.test)} test sequences (longest {longest(test)} frames); the protocol needs "
+        f"t_his + t_pred = {ds.t_his} + {ds.t_pred} = {ds.t_total} frames at {ds.fps:g} fps "
+        f"({'a test sequence longer than that' if which == 'test' else f'a training sequence of at least {need}'}).{hint}",
+    )
+
+
 def train(cfg: Config, prep: Prepared, workdir: str | Path, resume: bool = False) -> dict:
-    """Returns `{stage name: parameters}` after training every stage of the config's method (`runner.train`)."""
+    """Returns `{stage name: parameters}` after training every stage of the config's method (`runner.train`).
+
+    Writes `workdir/predictor.json` first (`jaxmotion.predictor`): what `jaxmotion.load` needs to predict.
+    """
+    from jaxmotion.predictor import write_manifest
+
+    write_manifest(resolve(cfg), prep.dataset, workdir)
     return runner.train(get_method(cfg.method), cfg, prep, workdir, resume=resume)
 
 
@@ -159,6 +210,10 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
         mm, thr, ref_futures = x[:, -1], ds.mm_threshold, None
     else:
         (mm, ref_futures), thr = reference_sets(method, prep), None
+    if not (workdir / "predictor.json").exists():  # a run trained before `predictor.json` existed
+        from jaxmotion.predictor import write_manifest
+
+        write_manifest(cfg, ds, workdir)
     records = []
     extra_fn = method.extra_metrics
     for k in cfg.eval_k:
@@ -222,7 +277,7 @@ def format_record(rec: dict) -> str:
 
 
 def report(cfg: Config, prep: Prepared, params, workdir: Path, method: str | None = None) -> Path:
-    """Writes `workdir/samples.png` for the test window whose ground truth is most multimodal.
+    """Writes `workdir/samples.png` and `samples.gif` (animated) for the test window whose ground truth is most multimodal.
 
     That is the window whose multimodal ground-truth futures (PROTOCOL sec. 2) end furthest apart
     on average: where a good stochastic predictor should show several distinct futures.
@@ -244,7 +299,12 @@ def report(cfg: Config, prep: Prepared, params, workdir: Path, method: str | Non
         f"{ds.name}: test window {i} (sequence {prep.seq_index[i]}, start frame {prep.starts[i]}), "
         f"{method}, K={k}, {ds.t_his} observed -> {ds.t_pred} predicted frames at {ds.fps:g} fps"
     )
-    return plot_futures(prep.x[i], preds, prep.y[i], ds.skeleton.parents, workdir / "samples.png", title=title)
+    png = plot_futures(prep.x[i], preds, prep.y[i], ds.skeleton.parents, workdir / "samples.png", title=title)
+    from jaxmotion.animate import animate_futures
+
+    animate_futures(prep.x[i], preds, prep.y[i], ds.skeleton.parents, workdir / "samples.gif", fps=ds.fps,
+                    title=f"{ds.name}: test window {i}, {method}, K={k}; observed, then the futures")
+    return png
 
 
 def _main_predictor(cfg: Config, fns: dict) -> str:

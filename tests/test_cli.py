@@ -78,6 +78,7 @@ def test_run_writes_protocol_records_and_picture(run_dir):
     assert m["cvae", 6]["ADE"] <= m["cvae", 2]["ADE"] + 1e-6
     png = work / "samples.png"
     assert png.stat().st_size > 10_000 and png.read_bytes()[:4] == b"\x89PNG"
+    assert (work / "samples.gif").read_bytes()[:6] == b"GIF89a" and (work / "predictor.json").is_file()
     log = [json.loads(line) for line in (work / "cvae" / "log.jsonl").read_text().splitlines()]
     assert [r["step"] for r in log] == [10, 20, 30] and log[-1]["loss"] < log[0]["loss"]
     manifest = json.loads((work / "dlow_k6" / "stage.json").read_text())

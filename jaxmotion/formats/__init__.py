@@ -1,7 +1,9 @@
 """File formats: motion capture parsers and helpers that need nothing but numpy.
 
 - `bvh.read_bvh` / `bvh.forward_kinematics`: BVH skeletons and motion; `bvh.guess_scale` (metres
-  per file unit) and `bvh.is_ground_node` (a constant root like Bandai's `joint_Root`).
+  per file unit), `bvh.is_ground_node` (a constant root like Bandai's `joint_Root`) and
+  `bvh.is_ground_skeleton` (the same decided from the skeleton alone, once per folder).
+- `bvh_write.write_bvh` / `bvh_write.matrix_to_euler`: writing BVH files (the inverse of `bvh`).
 - `c3d.read_c3d`: labelled C3D marker trajectories with their gaps.
 
 This is the lowest layer: `formats <- body <- data` (body models read BVH files, dataset loaders

@@ -1,0 +1,221 @@
+"""Predict from your own motion file: read it, bring it to a trained model's layout, draw K futures, write them.
+
+    jaxmotion predict runs/dlow_synthetic --input clip.bvh --k 5 --out futures/
+
+`read_motion` reads a BVH clip (forward kinematics, units guessed as `formats.bvh.guess_scale` does
+unless `scale` is given) or an npz of joint positions (`positions` (T, J, 3), optional `names`,
+`fps`, `scale` (metres per unit, default 1), `up_axis`). `to_layout` matches joints by name (an error
+lists the missing and the extra joints), converts to metres, turns the up axis onto the model's,
+resamples a different frame rate by linear interpolation of joint positions and makes frames
+root-relative with the root dropped. `predict_file` writes `futures.npz`, one BVH per future on the
+input's own skeleton (`retarget.fit_bvh`: the observed frames, then the future, the root held at
+its last observed place since the models predict root-relative motion) and `samples.gif`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from jaxmotion.errors import DataError
+from jaxmotion.formats.bvh import Bvh, forward_kinematics, guess_scale, read_bvh
+from jaxmotion.formats.bvh_write import read_end_sites, write_bvh
+from jaxmotion.predictor import MotionPredictor
+from jaxmotion.retarget import bvh_from_positions, fit_bvh
+
+
+@dataclasses.dataclass
+class Motion:
+    """Global joint positions of a file, in metres, with what is needed to write results back onto it."""
+
+    path: Path
+    names: tuple[str, ...]
+    positions: np.ndarray  # (T, J, 3) metres
+    fps: float | None
+    scale: float  # metres per file unit
+    up_axis: int | None
+    bvh: Bvh | None = None  # the source skeleton when the file is a BVH
+    notes: list[str] = dataclasses.field(default_factory=list)
+
+
+def read_motion(path: str | Path, scale: float | None = None) -> Motion:
+    """Returns the joint positions of a BVH clip or an npz file (module docstring)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such file")
+    if path.suffix.lower() == ".bvh":
+        bvh = read_bvh(path)
+        s = guess_scale(bvh) if scale is None else scale
+        notes = [f"units: {s:g} m per file unit ({'guessed from the skeleton' if scale is None else '--scale'})"]
+        return Motion(path, bvh.names, forward_kinematics(bvh) * s, bvh.fps, s, 1, bvh, notes)
+    if path.suffix.lower() == ".npz":
+        try:
+            z = dict(np.load(path, allow_pickle=False))
+        except Exception as e:
+            raise DataError(path, f"cannot read npz ({type(e).__name__}: {e})") from e
+        if "positions" not in z:
+            raise DataError(path, f"needs an array 'positions' (T, J, 3); has {sorted(z)}")
+        pos = np.asarray(z["positions"], np.float64)
+        if pos.ndim != 3 or pos.shape[-1] != 3 or not np.all(np.isfinite(pos)):
+            raise DataError(path, f"'positions' must be a finite (T, J, 3) array, got shape {pos.shape}")
+        names = tuple(str(n) for n in z["names"]) if "names" in z else None
+        if names is not None and len(names) != pos.shape[1]:
+            raise DataError(path, f"{len(names)} names for {pos.shape[1]} joints")
+        s = float(z["scale"]) if "scale" in z else (1.0 if scale is None else scale)
+        fps = float(z["fps"]) if "fps" in z else None
+        up = int(z["up_axis"]) if "up_axis" in z else None
+        return Motion(path, names, pos * s, fps, s, up, None, [f"units: {s:g} m per unit"])
+    raise DataError(path, "expected a .bvh clip or an .npz of joint positions")
+
+
+def match_joints(motion: Motion, joints: list[str]) -> np.ndarray:
+    """Returns the input joint index of each model joint, or raises `DataError` listing the missing and extra joints."""
+    if motion.names is None:
+        if motion.positions.shape[1] != len(joints):
+            raise DataError(
+                motion.path, f"{motion.positions.shape[1]} unnamed joints, the model has {len(joints)} ({joints}); "
+                "add 'names' to the npz"
+            )
+        motion.notes.append("joints: unnamed, taken in the model's order")
+        return np.arange(len(joints))
+    missing = [n for n in joints if n not in motion.names]
+    extra = [n for n in motion.names if n not in joints]
+    if missing:
+        raise DataError(
+            motion.path, f"skeleton does not match the model's: missing joints {missing}; extra joints {extra} "
+            f"(the model has {len(joints)} joints: {joints})"
+        )
+    if extra:
+        motion.notes.append(f"joints: {len(extra)} not in the model ignored ({extra})")
+    return np.array([motion.names.index(n) for n in joints])
+
+
+def resample(positions: np.ndarray, fps_in: float, fps_out: float) -> np.ndarray:
+    """Returns `(T', ...)` positions at `fps_out` by linear interpolation in time over the same span (frame 0 kept)."""
+    t_in = np.arange(positions.shape[0]) / fps_in
+    t_out = np.arange(0.0, t_in[-1] + 1e-9, 1.0 / fps_out)
+    flat = positions.reshape(positions.shape[0], -1)
+    out = np.stack([np.interp(t_out, t_in, flat[:, c]) for c in range(flat.shape[1])], axis=1)
+    return out.reshape((len(t_out),) + positions.shape[1:])
+
+
+def _roll(p: np.ndarray, shift: int) -> np.ndarray:
+    return np.roll(p, shift, axis=-1)  # a cyclic permutation of x, y, z: a proper rotation
+
+
+def predict_file(
+    model: MotionPredictor, path: str | Path, out: str | Path, *, frame: int | None = None, k: int | None = None,
+    method: str | None = None, seed: int = 0, scale: float | None = None, gif: bool = True,
+) -> list[str]:
+    """Writes the K futures of the window of `path` ending at input frame `frame` to `out`; returns the lines to print.
+
+    `frame` defaults to the last frame whose full future is still in the clip (then the GIF shows the
+    ground truth), or the clip's last frame when it is shorter than `t_his + t_pred`.
+    """
+    lay = model.layout
+    if lay["frames"] != "root_relative":
+        raise DataError(path, f"the model predicts {lay['frames']} marker frames; predict from a file supports joint models")
+    motion = read_motion(path, scale)
+    idx = match_joints(motion, lay["joints"])
+    pos = motion.positions
+    notes = motion.notes
+    shift = 0
+    if lay.get("up_axis") is not None and motion.up_axis is not None and motion.up_axis != lay["up_axis"]:
+        shift = (lay["up_axis"] - motion.up_axis) % 3
+        pos = _roll(pos, shift)
+        notes.append(f"up axis: input {'xyz'[motion.up_axis]} turned onto the model's {'xyz'[lay['up_axis']]}")
+    fps_in, fps = motion.fps, lay["fps"]
+    n_in = pos.shape[0]
+    if frame is not None and not 0 <= frame < n_in:
+        raise ValueError(f"--frame must be in [0, {n_in}) for {motion.path} ({n_in} frames), got {frame}")
+    if fps_in is None:
+        notes.append(f"frame rate: not in the file, taken as the model's {fps:g} fps")
+        fps_in = fps
+    ratio = fps / fps_in
+    if abs(ratio - 1) > 0.01:
+        pos = resample(pos, fps_in, fps)
+        notes.append(
+            f"frame rate: resampled from {fps_in:g} to {fps:g} fps by linear interpolation of joint positions "
+            f"({n_in} -> {pos.shape[0]} frames); --frame counts input frames"
+        )
+    else:
+        ratio = 1.0
+    n = pos.shape[0]
+    t_his, t_pred = lay["t_his"], lay["t_pred"]
+    if frame is None:
+        end = n - t_pred - 1 if n >= t_his + t_pred else n - 1
+    else:
+        end = min(n - 1, int(round(frame * ratio)))
+    if end + 1 < t_his:
+        raise DataError(
+            motion.path, f"the observed window ending at frame {end} (model rate) has fewer than t_his = {t_his} frames "
+            f"({t_his / fps:.2f} s at {fps:g} fps); the clip has {n} frames at that rate"
+        )
+    joints = pos[:, idx]  # (n, J, 3) metres, model joint order
+    frames = (joints[:, 1:] - joints[:, :1]).reshape(n, -1).astype(np.float32)
+    x = frames[end + 1 - t_his : end + 1]
+    gt = frames[end + 1 : end + 1 + t_pred] if end + t_pred < n else None
+    k = k or model.default_k
+    if method is None:
+        method = model.main_method(k)
+        if method != model.config.method:
+            notes.append(f"method: {model.config.method!r} has no predictor at K={k} (trained K: {tuple(model.config.eval_k)}); using {method!r}")
+    futures = model.predict(x, k, jax.random.key(seed), method)  # (K, t_pred, D)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+
+    # World joint positions of observed + future frames, the root held at its last observed place.
+    root = joints[end, 0]
+    fut_j = np.concatenate([np.zeros((k, t_pred, 1, 3)), futures.reshape(k, t_pred, -1, 3)], axis=2) + root
+    obs_j = joints[end + 1 - t_his : end + 1]
+    np.savez(
+        out / "futures.npz", futures=futures, observed=x, ground_truth=gt if gt is not None else np.zeros((0,) + x.shape[1:]),
+        joints=fut_j.astype(np.float32), observed_joints=obs_j.astype(np.float32), names=np.array(lay["joints"]),
+        parents=np.array(lay["parents"]), fps=fps, t_his=t_his, t_pred=t_pred, method=method, k=k, end_frame=end,
+        input=str(motion.path), notes="\n".join(notes),
+    )
+    written = [out / "futures.npz"]
+    # Back to the input's world and units for the BVH files.
+    to_file = lambda p: _roll(p, -shift) / motion.scale  # noqa: E731
+    if motion.bvh is not None:
+        template = dataclasses.replace(motion.bvh, frame_time=1.0 / fps)
+        known = np.zeros(template.num_joints, bool)
+        known[idx] = True
+        ref = int(round(end / ratio))
+        end_sites = read_end_sites(motion.path)
+        ref_motion = template.motion[min(ref, template.num_frames - 1)]
+    else:
+        names, parents = tuple(lay["joints"]), tuple(lay["parents"])
+    for i in range(k):
+        seq = to_file(np.concatenate([obs_j, fut_j[i]]))  # (t_his + t_pred, J_model, 3)
+        if motion.bvh is not None:
+            targets = np.zeros((seq.shape[0], template.num_joints, 3))
+            targets[:, idx] = seq
+            # Reference pose (twist, joints the model does not predict): the input's frame at the window's end.
+            tpl = dataclasses.replace(template, motion=ref_motion[None])
+            fitted = fit_bvh(tpl, targets, known, reference_frame=0)
+            p = write_bvh(out / f"future_{i:02d}.bvh", fitted, end_sites)
+        else:
+            p = write_bvh(out / f"future_{i:02d}.bvh", bvh_from_positions(names, parents, seq, fps, rest_frame=t_his - 1))
+        written.append(p)
+    if gif:
+        from jaxmotion.animate import animate_futures
+
+        written.append(animate_futures(
+            x, futures, gt, tuple(lay["parents"]), out / "samples.gif", fps=fps,
+            title=f"{motion.path.name}: frames {end + 1 - t_his}-{end} observed, {method}, K={k}",
+        ))
+    lines = [
+        f"input: {motion.path} ({n_in} frames at {motion.fps or fps:g} fps, {len(motion.names or idx)} joints)",
+        f"model: {model.run_dir} ({model.manifest['dataset']['name']}, {model.config.method}; {len(lay['joints'])} joints, "
+        f"{t_his} -> {t_pred} frames at {fps:g} fps)",
+        *[f"note: {s}" for s in notes],
+        f"observed: model-rate frames {end + 1 - t_his}..{end}" + ("" if gt is not None else " (no ground truth after it)"),
+        f"predicted: K={k} futures with {method!r}; BVH files hold the {t_his} observed frames, then {t_pred} predicted, "
+        "the root held at its last observed position",
+        *[f"wrote {p}" for p in written],
+    ]
+    return lines

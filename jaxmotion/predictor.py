@@ -1,0 +1,260 @@
+"""A trained run directory as a self-contained predictor: `jaxmotion.load(run_dir).predict(x, k, key)`.
+
+    model = jaxmotion.load("runs/dlow_synthetic")
+    model.methods                                   # ['cvae', 'dlow', 'zero_velocity'] at the default K
+    futures = model.predict(x, k=50, key=jax.random.key(0))   # x (t_his, D) -> (50, t_pred, D)
+
+Training writes `predictor.json` beside the stage folders (`write_manifest`): the config, the
+skeleton (joint names, parents, median bone lengths), the frame layout (joints kept, root dropped,
+root-relative or canonical global frames, metres, fps, t_his / t_pred) and the dataset it came
+from. `load` needs nothing else: each stage's parameters are restored from its orbax checkpoint
+without a target structure and checked against the shapes its `stage.json` lists, so no training
+data (which the methods' `stages` read to build their batches) is touched.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import json
+import typing
+from pathlib import Path
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxmotion.config import Config, to_dict
+from jaxmotion.data.types import MotionDataset, Skeleton
+from jaxmotion.errors import CheckpointError
+
+MANIFEST = "predictor.json"
+VERSION = 1
+
+
+def layout(ds: MotionDataset) -> dict:
+    """Returns the frame layout of `ds`: what a model's input and output vectors mean."""
+    marker = ds.info.get("frames") == "global"
+    return {
+        "joints": list(ds.skeleton.names),
+        "parents": [int(p) for p in ds.skeleton.parents],
+        "root": ds.skeleton.names[0],
+        "frames": "global" if marker else "root_relative",
+        "canonicalisation": "per window at its first frame (PROTOCOL sec. 4)" if marker else None,
+        "vector": "joints 1..J-1 x (x, y, z), root dropped" if not marker else "markers x (x, y, z), origin dropped",
+        "units": "m",
+        "fps": float(ds.fps),
+        "t_his": int(ds.t_his),
+        "t_pred": int(ds.t_pred),
+        "dim": int(ds.dim),
+        "up_axis": ds.info.get("up_axis"),
+        "mm_threshold": float(ds.mm_threshold),
+    }
+
+
+def bone_lengths(ds: MotionDataset) -> list[float] | None:
+    """Returns the median length (m) of every bone `parent(j) -> j` over the training frames (None without joints)."""
+    if ds.info.get("frames") == "global" or not ds.train:
+        return None
+    parents = np.asarray(ds.skeleton.parents)
+    child = np.nonzero(parents >= 0)[0]
+    lengths = [np.linalg.norm(s.positions[::10, child] - s.positions[::10, parents[child]], axis=-1) for s in ds.train]
+    med = np.median(np.concatenate(lengths), axis=0)
+    out = np.zeros(len(parents))
+    out[child] = med
+    return [round(float(v), 5) for v in out]
+
+
+def write_manifest(cfg: Config, ds: MotionDataset, workdir: str | Path, data: str | None = None) -> Path:
+    """Writes `workdir/predictor.json` (module docstring) and returns its path."""
+    workdir = Path(workdir)
+    workdir.mkdir(parents=True, exist_ok=True)
+    manifest = {
+        "version": VERSION,
+        "method": cfg.method,
+        "dataset": {"name": ds.name, "source": data or ds.info.get("source") or cfg.dataset, "options": dict(cfg.data_options)},
+        "layout": layout(ds),
+        "bone_lengths": bone_lengths(ds),
+        "config": to_dict(cfg),
+    }
+    path = workdir / MANIFEST
+    tmp = path.with_name(MANIFEST + ".tmp")
+    tmp.write_text(json.dumps(manifest, indent=1, default=_json_default))
+    tmp.replace(path)
+    return path
+
+
+def _json_default(v):
+    if isinstance(v, (np.integer, np.floating)):
+        return v.item()
+    if isinstance(v, (np.ndarray, tuple)):
+        return list(v)
+    return str(v)
+
+
+def config_from_dict(d: dict) -> Config:
+    """Returns the `Config` that `config.to_dict` wrote (the method's settings rebuilt from `method_config_type`)."""
+    d = dict(d)
+    type_name = d.pop("method_config_type", None)
+    mc = d.pop("method_config", None)
+    cfg = _build(Config, {**d, "method_config": None})
+    if type_name is not None and mc is not None:
+        module, _, name = type_name.rpartition(".")
+        cfg = dataclasses.replace(cfg, method_config=_build(getattr(importlib.import_module(module), name), mc))
+    return cfg
+
+
+def _build(cls, d: dict):
+    hints = typing.get_type_hints(cls)
+    kw = {}
+    for f in dataclasses.fields(cls):
+        if f.name in d and f.init:
+            kw[f.name] = _value(hints.get(f.name, Any), d[f.name])
+    return cls(**kw)
+
+
+def _value(hint, v):
+    if v is None:
+        return None
+    if dataclasses.is_dataclass(hint) and isinstance(v, dict):
+        return _build(hint, v)
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin is typing.Union or (origin is not None and type(None) in args):
+        for a in args:
+            if a is not type(None) and (dataclasses.is_dataclass(a) or typing.get_origin(a) is tuple or a is tuple):
+                return _value(a, v)
+        return v
+    if (origin is tuple or hint is tuple) and isinstance(v, list):
+        inner = args[0] if args else Any
+        return tuple(_value(inner, x) for x in v)
+    return v
+
+
+def restore_stage_params(stage_dir: Path):
+    """Returns a stage's parameters from its latest orbax checkpoint, restored without a target and checked against `stage.json`."""
+    import orbax.checkpoint as ocp
+
+    from jaxmotion.train.runner import MANIFEST as STAGE_MANIFEST
+    from jaxmotion.train.runner import param_shapes
+
+    ckpt = (stage_dir / "ckpt").absolute()
+    mngr = ocp.CheckpointManager(ckpt)
+    try:
+        step = mngr.latest_step()
+        if step is None:
+            raise CheckpointError(f"{ckpt}: no checkpoint; train this run first (jaxmotion train)")
+        restored = mngr.restore(step, args=ocp.args.StandardRestore())
+    except CheckpointError:
+        raise
+    except Exception as e:
+        raise CheckpointError(f"{ckpt}: checkpoint does not restore ({type(e).__name__}: {str(e)[:200]})") from e
+    finally:
+        mngr.close()
+    params = jax.tree.map(jnp.asarray, restored["params"])
+    want = json.loads((stage_dir / STAGE_MANIFEST).read_text()).get("params")
+    if want is not None and param_shapes(params) != want:
+        raise CheckpointError(f"{stage_dir}: the checkpoint's parameters do not match the shapes its stage.json lists")
+    return params
+
+
+class MotionPredictor:
+    """A trained run: `predict(x, k, key)` draws K futures of frames in the model's layout (`layout`)."""
+
+    def __init__(self, run_dir: str | Path):
+        from jaxmotion.methods import get_method
+        from jaxmotion.train.runner import MANIFEST as STAGE_MANIFEST
+
+        self.run_dir = Path(run_dir)
+        path = self.run_dir / MANIFEST
+        if not path.is_file():
+            raise FileNotFoundError(
+                f"{path}: not found; {self.run_dir} is not a trained run (jaxmotion run / train write it), "
+                "or it was trained before predictor.json existed: `jaxmotion eval` on it writes it"
+            )
+        self.manifest = json.loads(path.read_text())
+        self.layout = self.manifest["layout"]
+        self.config = config_from_dict(self.manifest["config"])
+        self.method = get_method(self.config.method)
+        lay = self.layout
+        self.skeleton = Skeleton(tuple(lay["joints"]), tuple(lay["parents"]))
+        # A dataset without sequences: what the methods' predictors read (skeleton, lengths, fps, info).
+        info = {"frames": "global"} if lay["frames"] == "global" else {}
+        if lay.get("up_axis") is not None:
+            info["up_axis"] = lay["up_axis"]
+        self.dataset = MotionDataset(
+            name=self.manifest["dataset"]["name"], skeleton=self.skeleton, fps=lay["fps"], t_his=lay["t_his"],
+            t_pred=lay["t_pred"], mm_threshold=lay["mm_threshold"], train=[], test=[], info=info,
+        )
+        self.params = {}
+        for d in sorted(self.run_dir.iterdir()):
+            m = d / STAGE_MANIFEST
+            if m.is_file() and json.loads(m.read_text()).get("method") == self.method.name and (d / "ckpt").is_dir():
+                self.params[d.name] = restore_stage_params(d)
+        if not self.params:
+            raise CheckpointError(f"{self.run_dir}: no trained stage of method {self.method.name!r}")
+        self._fns: dict[int, dict] = {}
+
+    @property
+    def t_his(self) -> int:
+        return self.layout["t_his"]
+
+    @property
+    def t_pred(self) -> int:
+        return self.layout["t_pred"]
+
+    @property
+    def dim(self) -> int:
+        return self.layout["dim"]
+
+    @property
+    def default_k(self) -> int:
+        return max(self.config.eval_k)
+
+    def predictors(self, k: int) -> dict:
+        """Returns the method's jitted predictors at `k` by name (cached)."""
+        if k not in self._fns:
+            try:
+                self._fns[k] = self.method.predictors(self.config, self.dataset, self.params, k)
+            except KeyError as e:
+                raise CheckpointError(f"{self.run_dir}: stage {e.args[0]!r} has no checkpoint; train it first") from None
+        return self._fns[k]
+
+    @property
+    def methods(self) -> list[str]:
+        """Returns the predictor names available at the default K (a per-K network, like DLow's, exists only for the trained K)."""
+        return sorted(self.predictors(self.default_k))
+
+    def main_method(self, k: int | None = None) -> str:
+        """Returns the method's own predictor name (else the last one listed)."""
+        fns = self.predictors(k or self.default_k)
+        return self.config.method if self.config.method in fns else list(fns)[-1]
+
+    def predict(self, x, k: int | None = None, key: jax.Array | None = None, method: str | None = None) -> np.ndarray:
+        """Returns `(K, t_pred, D)` futures for `x` `(t_his, D)`, or `(b, K, t_pred, D)` for `(b, t_his, D)`.
+
+        `x` is observed frames in `layout` (metres, root-relative, root dropped); `method` defaults to the
+        run's own (`methods` lists the others), `k` to the config's largest K, `key` to `key(0)`.
+        """
+        k = k or self.default_k
+        x = np.asarray(x, np.float32)
+        single = x.ndim == 2
+        xb = x[None] if single else x
+        if xb.ndim != 3 or xb.shape[1:] != (self.t_his, self.dim):
+            raise ValueError(f"predict: x must be (t_his={self.t_his}, D={self.dim}) or (b, {self.t_his}, {self.dim}), got {x.shape}")
+        if not np.all(np.isfinite(xb)):
+            raise ValueError("predict: x holds NaN or inf")
+        fns = self.predictors(k)
+        method = method or self.main_method(k)
+        if method not in fns:
+            raise ValueError(
+                f"predict: method {method!r} at K={k} is not available; available: {sorted(fns)} (a per-K network "
+                f"such as DLow's exists for the trained K in {tuple(self.config.eval_k)})"
+            )
+        out = np.asarray(fns[method](jnp.asarray(xb), jax.random.key(0) if key is None else key))
+        return out[0] if single else out
+
+
+def load(run_dir: str | Path) -> MotionPredictor:
+    """Returns the trained run at `run_dir` as a `MotionPredictor` (needs only the run directory)."""
+    return MotionPredictor(run_dir)
