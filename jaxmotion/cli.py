@@ -138,5 +138,21 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def entry() -> int:
+    """The console script: `main`, with the library's own user errors printed as one line (exit code 2).
+
+    A bad file, config or checkpoint is the user's to fix, and its message names what is wrong, so
+    the traceback through jaxmotion's internals is left out. `main` itself raises them (for tests
+    and for code that calls it).
+    """
+    from jaxmotion.errors import CheckpointError, ConfigError, DataError
+
+    try:
+        return main()
+    except (DataError, ConfigError, CheckpointError) as e:
+        print(f"jaxmotion: error: {e}", file=sys.stderr)
+        return 2
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(entry())

@@ -334,3 +334,18 @@ def test_batch_larger_than_the_data_is_a_config_error():
     cfg = Config(method_config=DLowConfig(cvae=CVAEConfig(batch_size=500)))
     with pytest.raises(ConfigError, match=r"method_config.cvae.batch_size 500 is larger than the 400 training windows"):
         validate(cfg, num_train_windows=400)
+
+
+def test_console_script_prints_user_errors_without_a_traceback(tmp_path):
+    import subprocess
+    import sys
+
+    cfg = tmp_path / "typo.py"
+    cfg.write_text("from jaxmotion.config import Config\n\ndef get_config():\n    return Config(name='t', ckpt_evry=5)\n")
+    code = "import sys; from jaxmotion.cli import entry; sys.argv = ['jaxmotion'] + sys.argv[1:]; sys.exit(entry())"
+    r = subprocess.run([sys.executable, "-c", code, "train", "--config", str(cfg), "--workdir", str(tmp_path / "run")],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2, r.stderr
+    assert "Traceback" not in r.stderr
+    assert "unknown field 'ckpt_evry' of Config; did you mean 'ckpt_every'?" in r.stderr
+    assert str(cfg) in r.stderr
