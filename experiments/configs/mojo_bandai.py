@@ -7,7 +7,8 @@
 #   mojo_prior  APD 1.645 ADE 0.2830 FDE 0.3190 MMADE 0.3346 MMFDE 0.3459 FSE 0.004 BDF 0.068 (N(0, I) in all bands)
 #   zero_vel.   APD 0.000 ADE 0.4328 FDE 0.4844 MMADE 0.4805 MMFDE 0.5144 FSE -0.472
 # Before issue 11 (flax initialisation): mojo APD 5.587 ADE 0.272 FDE 0.321 MMADE 0.314.
-# Seeds 1 and 2 not run yet.
+# Seed 1 (`python -m jaxmotion.cli run ... --seed 1`): mojo APD 8.615 ADE 0.2485 FDE 0.2941 MMADE 0.2979
+#   MMFDE 0.3214 FSE 0.189 BDF 0.286; mojo_prior APD 1.638 ADE 0.2903 FDE 0.3226 MMADE 0.3400. Seed 2 not run yet.
 """MOJO on Bandai-Namco-2 joints (15 -> 60 frames at 30 fps, D = 60): latent DCT (60 bands x 16),
 L1 + 3 x velocity L1 + robust KLD (Eq. (1)), residual decoder; DLow on the lowest 12 bands.
 
