@@ -50,6 +50,13 @@ class Config:
     # a sequence uniformly, then a start). Every measured table used "windows".
     train_sampler: str = "windows"
     mm_deviation: str | None = None  # None (protocol), "divsamp" or "comusion"
+    # Learning curves: every `curve_every` training steps (0: never) each stage evaluates APD, ADE,
+    # FDE, MMADE and MMFDE of the predictors its parameters so far allow, at K = `curve_k`, on
+    # `curve_windows` evenly spaced test windows (their MM sets over every test window), into its
+    # log.jsonl (lines with "curve": true); `experiments/plot_curves.py` draws them.
+    curve_every: int = 0
+    curve_windows: int = 200
+    curve_k: int = 50
 
 
 def load_config(path: str | Path | None) -> Config:
@@ -105,6 +112,8 @@ _CONFIG_RULES = (
     ("max_test_windows", lambda v: v is None or v >= 1, "None or >= 1"),
     ("mode_threshold", lambda v: v > 0, "> 0"),
     ("mode_max_boundary", lambda v: v >= 0, ">= 0"),
+    ("curve_every", lambda v: v >= 0, ">= 0 (0: no learning curve)"),
+    *((n, lambda v: v >= 1, ">= 1") for n in ("curve_windows", "curve_k")),
 )
 
 

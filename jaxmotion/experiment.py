@@ -147,7 +147,45 @@ def train(cfg: Config, prep: Prepared, workdir: str | Path, resume: bool = False
     from jaxmotion.predictor import write_manifest
 
     write_manifest(resolve(cfg), prep.dataset, workdir)
-    return runner.train(get_method(cfg.method), cfg, prep, workdir, resume=resume)
+    curve = learning_curve(cfg, prep) if cfg.curve_every > 0 else None
+    return runner.train(get_method(cfg.method), cfg, prep, workdir, resume=resume, curve=curve)
+
+
+CURVE_METRICS = ("APD", "ADE", "FDE", "MMADE", "MMFDE")
+
+
+def learning_curve(cfg: Config, prep: Prepared) -> runner.Curve:
+    """Returns `curve(params) -> {"K", "n_windows", "predictors": {name: {APD, ADE, FDE, MMADE, MMFDE}}} | None`.
+
+    The windows are `cfg.curve_windows` evenly spaced test windows (the same at every point); their
+    MM sets are built over every test window (PROTOCOL sec. 2, `mm_deviation` not applied), so the
+    multimodal terms are the full evaluation's for those windows. The predictors are the method's
+    for the stages trained so far, less `Method.curve_skip`; None when that leaves none (a stage
+    whose later stages are needed to predict). The noise key is the same at every point.
+    """
+    method, ds = get_method(cfg.method), prep.dataset
+    n = len(prep.windows)
+    sub = np.unique(np.linspace(0, n - 1, min(cfg.curve_windows, n)).round().astype(int))
+    sets, ref = reference_sets(method, prep)
+    sets = metrics.MMSets(np.asarray(sets.idx)[sub], np.asarray(sets.mask)[sub])
+    ref = prep.y if ref is None else ref
+    x, y = prep.x[sub], prep.y[sub]
+
+    def curve(params: dict) -> dict | None:
+        try:
+            fns = method.predictors(cfg, ds, params, cfg.curve_k)
+        except KeyError:  # a stage that cannot predict before the later ones are trained
+            return None
+        out = {}
+        for name, fn in fns.items():
+            if name in method.curve_skip:
+                continue
+            chunks = predict_chunks(fn, x, jax.random.key(cfg.seed + 11), cfg.eval_batch)
+            m = metrics.evaluate_windows(chunks, y, sets, reference_futures=ref)
+            out[name] = {k: round(float(m[k]), 6) for k in CURVE_METRICS}
+        return {"K": cfg.curve_k, "n_windows": int(len(sub)), "predictors": out} if out else None
+
+    return curve
 
 
 def restore(cfg: Config, prep: Prepared, workdir: str | Path) -> dict:

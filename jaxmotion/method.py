@@ -77,6 +77,11 @@ class Method:
     - `reference_futures`: where the multimodal ground truth of MMADE/MMFDE comes from: "test"
       (PROTOCOL sec. 2: the futures of test windows with a similar last observed pose) or "train"
       (the futures of training windows, a pool of pseudo ground truth); "test" is the protocol.
+    - `curve_skip`: predictor names left out of the learning curves (constant or slow ones).
+
+    During training, learning curves call `predictors` with the stages trained so far (the current
+    one included, later ones absent): return the predictors those allow, or raise `KeyError` for
+    none (that stage then has no curve).
     """
 
     name: str
@@ -86,6 +91,8 @@ class Method:
     extra_metrics: Callable[[Any, np.ndarray, np.ndarray], dict[str, np.ndarray]] | None = None
     reference_futures: str = "test"
     description: str = ""
+    # Predictors left out of the learning curves (`Config.curve_every`): constant or slow baselines.
+    curve_skip: tuple[str, ...] = ("zero_velocity",)
 
     def __post_init__(self):
         if self.reference_futures not in ("test", "train"):

@@ -85,22 +85,25 @@ def make_predictors(d: DivSampConfig, ds, cvae_variables, sampler_variables, k: 
     """Returns jitted `(x, key) -> (b, K, t_pred, D)` samplers: zero-velocity, the CVAE from N(0, I), DivSamp.
 
     DivSamp draws any K from the same trained sampler (its K is a call argument, not a constant).
+    Without `sampler_variables` (None: the sampler is not trained yet) there is no "divsamp".
     """
     cvae, sampler, t_pred = divsamp.cvae_from_config(d), divsamp.sampler_from_config(d), ds.t_pred
-    return {
+    out = {
         "zero_velocity": zero_velocity(t_pred, k),
         "divsamp_cvae": jax.jit(lambda x, key: divsamp.sample_prior(cvae, cvae_variables, x, key, k, t_pred=t_pred)),
-        "divsamp": jax.jit(
+    }
+    if sampler_variables is not None:
+        out["divsamp"] = jax.jit(
             lambda x, key: divsamp.sample_divsamp(
                 cvae, cvae_variables, sampler, sampler_variables, x, key, k, t_pred=t_pred, test_eps=d.test_eps
             )
-        ),
-    }
+        )
+    return out
 
 
 def predictors(cfg, ds, params: dict, k: int) -> dict:
-    """Returns `make_predictors` for the config's trained stages."""
-    return make_predictors(settings(cfg), ds, params["cvae"], params["sampler"], k)
+    """Returns `make_predictors` for the config's trained stages (the CVAE's alone while the sampler is not trained)."""
+    return make_predictors(settings(cfg), ds, params["cvae"], params.get("sampler"), k)
 
 
 METHOD = Method(

@@ -123,5 +123,6 @@ METHOD = Method(
     stages=stages,
     predictors=predictors,
     extra_metrics=extra_metrics,
+    curve_skip=("zero_velocity", "mojo_proj"),  # mojo_proj: a body fit per frame, too slow to run every N steps
     description="MOJO (Zhang, Black & Tang, CVPR 2021): latent-DCT CVAE, robust KLD, per-band DLow, recursive projection",
 )

@@ -126,6 +126,8 @@ def fit(
     ckpt_every: int = 500,
     log_every: int = 50,
     desc: str = "train",
+    evaluate: Callable[[Any], dict | None] | None = None,
+    eval_every: int = 0,
 ) -> TrainState:
     """Returns the trained state after `num_steps` steps, checkpointing into `workdir/ckpt`.
 
@@ -136,6 +138,11 @@ def fit(
     loss stops training with an error that names the step; the checkpoints written before it are
     kept. A checkpoint that cannot be written (read-only folder, full disk) is a `CheckpointError`
     naming the folder and the step kept.
+
+    With `evaluate(params) -> dict | None` and `eval_every > 0`, a learning-curve point is logged
+    before the first step, every `eval_every` steps and at the end: a log line `{"stage", "step",
+    "curve": true, "eval_s", **evaluate(state.params)}` (nothing when it returns None). `time_s`
+    of the training lines excludes the time spent in those evaluations.
     """
     workdir = Path(workdir).absolute()
     workdir.mkdir(parents=True, exist_ok=True)
@@ -180,9 +187,24 @@ def fit(
         mngr.close()
         return state
     t0 = time.perf_counter()
+    curve_s = 0.0
+
+    def curve_point(log, done):
+        nonlocal curve_s
+        t = time.perf_counter()
+        m = evaluate(state.params)
+        dt = time.perf_counter() - t
+        curve_s += dt
+        if m is not None:
+            log.write(json.dumps({"stage": desc, "step": done, "curve": True, "eval_s": round(dt, 3), **m}) + "\n")
+            log.flush()
+
+    curves = evaluate is not None and eval_every > 0
     with open(workdir / "log.jsonl", "a") as log, tqdm(
         total=num_steps, initial=start, desc=desc, mininterval=2.0, dynamic_ncols=True
     ) as bar:
+        if curves and start == 0:
+            curve_point(log, 0)
         for step in range(start, num_steps):
             batch = sample_batch(np.random.default_rng([seed, step]))
             batch = jax.device_put(batch, batch_sharding)
@@ -196,9 +218,11 @@ def fit(
                         f"{desc}: non-finite loss {m['loss']} at step {done}; "
                         f"last checkpoint: step {mngr.latest_step()} in {workdir / 'ckpt'}"
                     )
-                log.write(json.dumps({"stage": desc, "step": done, "time_s": time.perf_counter() - t0, **m}) + "\n")
+                log.write(json.dumps({"stage": desc, "step": done, "time_s": time.perf_counter() - t0 - curve_s, **m}) + "\n")
                 log.flush()
                 bar.set_postfix({k: f"{v:.4g}" for k, v in m.items() if k in ("loss", "recon", "kld", "div")})
+            if curves and (done % eval_every == 0 or done == num_steps):
+                curve_point(log, done)
             _save(mngr, ckpt, done, state)
             bar.update(1)
     if mngr.latest_step() != num_steps:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -99,13 +100,19 @@ def _train_step(stage: Stage):
     return make(stage.loss, stage.optimizer)
 
 
+# `curve(params) -> dict | None`: a learning-curve point for `{stage name: parameters}` of the stages so far.
+Curve = Callable[[dict[str, Any]], "dict | None"]
+
+
 def run_stage(
     method: Method, stage: Stage, cfg, workdir: str | Path, trained: dict[str, Any], resume: bool = False,
-    upstream: dict[str, int] | None = None,
+    upstream: dict[str, int] | None = None, curve: Curve | None = None,
 ):
     """Returns the trained parameters of one stage in `workdir/<stage.name>` (its frozen inputs from `trained`).
 
     `upstream` maps the frozen stages to their step counts (default: their configured `num_steps`).
+    `curve` is evaluated every `cfg.curve_every` steps with the earlier stages and this one's current
+    parameters, into the stage's log (`loop.fit`).
     """
     state = init_state(stage, trained)
     stage_dir = Path(workdir) / stage.name
@@ -122,6 +129,8 @@ def run_stage(
         state, _train_step(stage), stage.batches or (lambda rng: None), num_steps=stage.num_steps, workdir=stage_dir,
         seed=stage.data_seed, resume=resume, ckpt_every=cfg.ckpt_every, log_every=cfg.log_every,
         desc=f"{method.name} {stage.name}",
+        evaluate=None if curve is None else (lambda p: curve({**trained, stage.name: p})),
+        eval_every=getattr(cfg, "curve_every", 0),
     )
     return state.params
 
@@ -152,17 +161,19 @@ def restore_stage(method: Method, stage: Stage, workdir: str | Path, trained: di
         ) from e
 
 
-def train(method: Method, cfg, prep, workdir: str | Path, resume: bool = False) -> dict[str, Any]:
+def train(method: Method, cfg, prep, workdir: str | Path, resume: bool = False, curve: Curve | None = None) -> dict[str, Any]:
     """Returns `{stage name: trained parameters}` after training every stage of `method` in order.
 
     With `resume`, stages already finished are restored and an interrupted one continues from its
     latest checkpoint (the same batches and keys as an uninterrupted run); without it, a stage
-    folder that already holds checkpoints is an error (nothing is overwritten).
+    folder that already holds checkpoints is an error (nothing is overwritten). `curve`: see `run_stage`.
     """
     trained: dict[str, Any] = {}
     steps: dict[str, int] = {}
     for stage in method.stages(cfg, prep):
-        trained[stage.name] = run_stage(method, stage, cfg, workdir, trained, resume, {n: steps[n] for n in stage.frozen})
+        trained[stage.name] = run_stage(
+            method, stage, cfg, workdir, trained, resume, {n: steps[n] for n in stage.frozen}, curve
+        )
         steps[stage.name] = stage.num_steps
     return trained
 

@@ -1,0 +1,129 @@
+"""Learning curves of trained runs: APD, ADE, FDE and MMADE over training steps, one PNG per run.
+
+    python experiments/plot_curves.py RUN_DIR [RUN_DIR ...] [--out-dir DIR] [--tail 0.2]
+
+A run trained with `Config.curve_every > 0` has learning-curve lines (`"curve": true`) in each
+stage's `log.jsonl` (`jaxmotion.experiment.learning_curve`). Per run this writes `curves.png`
+(into the run folder, or `--out-dir/<run name>_curves.png`): one row per stage, one column per
+metric, one line per predictor, and prints, per stage and predictor, each metric's first, best and
+last value and its relative change over the last `--tail` of the stage's steps: the "flattened?"
+figure (a metric that still moves by several percent over the last fifth has not converged).
+Several runs of one config (seeds) are drawn into one figure with `--overlay OUT.png`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+METRICS = ("APD", "ADE", "FDE", "MMADE")
+
+
+def load_curves(run: Path) -> dict[str, dict[str, list[tuple[int, dict]]]]:
+    """Returns `{stage folder: {predictor: [(step, metrics), ...]}}` from a run's stage logs, in step order."""
+    out: dict = {}
+    for log in sorted(run.glob("*/log.jsonl")):
+        by_pred: dict = {}
+        for line in log.read_text().splitlines():
+            try:
+                rec = json.loads(line)
+            except ValueError:
+                continue
+            if not rec.get("curve"):
+                continue
+            for name, m in rec["predictors"].items():
+                by_pred.setdefault(name, []).append((int(rec["step"]), m))
+        if by_pred:
+            out[log.parent.name] = {k: sorted(v, key=lambda t: t[0]) for k, v in by_pred.items()}
+    return out
+
+
+def tail_change(points: list[tuple[int, dict]], metric: str, tail: float) -> float | None:
+    """Returns `(last - value at the start of the last `tail` of steps) / |last|` (None with under 2 points there)."""
+    last_step = points[-1][0]
+    cut = last_step * (1 - tail)
+    early = [m[metric] for s, m in points if s <= cut]
+    if not early or len(points) < 2:
+        return None
+    ref, last = early[-1], points[-1][1][metric]
+    return (last - ref) / abs(last) if last else None
+
+
+def summary(curves: dict, tail: float) -> list[str]:
+    """Returns one text line per (stage, predictor, metric): first, best, last and the tail change."""
+    lines = []
+    for stage, preds in curves.items():
+        for name, pts in preds.items():
+            for m in METRICS:
+                vals = [p[m] for _, p in pts]
+                best = max(vals) if m == "APD" else min(vals)
+                ch = tail_change(pts, m, tail)
+                chs = "n/a" if ch is None else f"{100 * ch:+.1f}%"
+                lines.append(
+                    f"{stage:>12} {name:>14} {m:>6}: step {pts[0][0]}->{pts[-1][0]} first {vals[0]:.4f} best {best:.4f} "
+                    f"last {vals[-1]:.4f}; last {int(100 * tail)}% of steps {chs}"
+                )
+    return lines
+
+
+def plot(runs: list[tuple[str, dict]], out: Path) -> None:
+    """Draws the curves of one or more runs (same stages) into `out`."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    stages = list(dict.fromkeys(s for _, c in runs for s in c))
+    fig, axes = plt.subplots(len(stages), len(METRICS), figsize=(4 * len(METRICS), 3 * len(stages)), squeeze=False)
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    preds = list(dict.fromkeys(p for _, c in runs for s in c.values() for p in s))
+    for r, stage in enumerate(stages):
+        for c, m in enumerate(METRICS):
+            ax = axes[r, c]
+            for label, curves in runs:
+                for name, pts in curves.get(stage, {}).items():
+                    tag = name if len(runs) == 1 else f"{name} {label}"
+                    ax.plot([s for s, _ in pts], [p[m] for _, p in pts], marker=".", color=colors[preds.index(name) % len(colors)],
+                            alpha=1.0 if len(runs) == 1 else 0.7, label=tag)
+            ax.set_title(f"{stage}: {m}", fontsize=9)
+            ax.set_xlabel("step")
+            ax.grid(alpha=0.3)
+            if c == 0:
+                ax.legend(fontsize=7)
+    fig.suptitle(", ".join(label for label, _ in runs) + " (metres; fixed test-window subset)", fontsize=10)
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=90)
+    plt.close(fig)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("runs", nargs="+", type=Path)
+    ap.add_argument("--out-dir", type=Path, default=None)
+    ap.add_argument("--overlay", type=Path, default=None, help="one figure of every run (seeds of one config)")
+    ap.add_argument("--tail", type=float, default=0.2)
+    args = ap.parse_args(argv)
+    loaded, missing = [], []
+    for run in args.runs:
+        curves = load_curves(run)
+        if not curves:
+            missing.append(str(run))
+            continue
+        loaded.append((run.name, curves))
+        out = (args.out_dir / f"{run.name}_curves.png") if args.out_dir else run / "curves.png"
+        plot([(run.name, curves)], out)
+        print(f"# {run}: {out}")
+        print("\n".join(summary(curves, args.tail)))
+    if args.overlay and loaded:
+        plot(loaded, args.overlay)
+        print(f"# overlay: {args.overlay}")
+    if missing:
+        print(f"no learning-curve lines (train with Config.curve_every > 0) in: {', '.join(missing)}", file=sys.stderr)
+    return 1 if not loaded else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

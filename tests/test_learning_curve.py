@@ -1,0 +1,47 @@
+"""Learning curves (`Config.curve_every`): points in each stage's log, the frozen stage's curve constant, the plot."""
+
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+
+from jaxmotion import experiment as ex
+from jaxmotion.config import Config
+from jaxmotion.models.dlow import CVAEConfig, DLowConfig, QConfig
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _curve_lines(stage_dir: Path) -> list[dict]:
+    return [r for r in map(json.loads, (stage_dir / "log.jsonl").read_text().splitlines()) if r.get("curve")]
+
+
+def test_curves_logged_per_stage_and_plotted(tmp_path, capsys):
+    cfg = Config(
+        method_config=DLowConfig(cvae=CVAEConfig(num_steps=30), q=QConfig(num_steps=20)), eval_k=(5,),
+        curve_every=15, curve_windows=24, curve_k=5, max_test_windows=60, log_every=10,
+    )
+    prep = ex.prepare(ex.load_data(cfg), cfg.max_test_windows)
+    ex.train(cfg, prep, tmp_path)
+    cvae, q = _curve_lines(tmp_path / "cvae"), _curve_lines(tmp_path / "dlow_k5")
+    assert [r["step"] for r in cvae] == [0, 15, 30]
+    assert [r["step"] for r in q] == [0, 15, 20]
+    assert all(r["n_windows"] == 24 and r["K"] == 5 for r in cvae + q)
+    assert set(cvae[0]["predictors"]) == {"cvae"} and set(q[0]["predictors"]) == {"cvae", "dlow"}
+    # The CVAE learns, and is frozen while the Q network trains: its curve there is its final point.
+    assert cvae[-1]["predictors"]["cvae"]["ADE"] < cvae[0]["predictors"]["cvae"]["ADE"]
+    for r in q:
+        assert r["predictors"]["cvae"] == cvae[-1]["predictors"]["cvae"]
+    assert q[-1]["predictors"]["dlow"] != q[0]["predictors"]["dlow"]
+    vals = [v for r in cvae + q for m in r["predictors"].values() for v in m.values()]
+    assert np.all(np.isfinite(vals))
+
+    spec = importlib.util.spec_from_file_location("plot_curves", ROOT / "experiments" / "plot_curves.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    assert mod.main([str(tmp_path)]) == 0
+    assert (tmp_path / "curves.png").stat().st_size > 10_000
+    out = capsys.readouterr().out
+    assert "dlow_k5" in out and "last 20% of steps" in out
+    assert mod.main([str(tmp_path / "cvae")]) == 1  # a folder without curve lines is reported, not drawn
