@@ -28,6 +28,7 @@ def get_config() -> Config:
         dataset="../shared/data/bandai-namco-2",
         eval_k=(50,),
         ckpt_every=500,
+        curve_every=500,  # learning curve of the generator (K = 50, 200 fixed test windows)
         method_config=GSPSConfig(
             prior_batch_size=4096, prior_num_steps=2000,
             n_pre=10, hidden=256, nk1=5, nk2=5, batch_size=16, num_steps=2000, lr_fix_fraction=0.2,
