@@ -1,11 +1,18 @@
 """One results table from trained runs: per seed, and mean +- standard deviation over seeds.
 
     python experiments/results_table.py RUN_DIR [RUN_DIR ...] [--metrics APD ADE FDE MMADE MMFDE] [--json OUT]
+    python experiments/results_table.py --headline RUN_DIR [RUN_DIR ...]
 
 Each RUN_DIR holds the `metrics.json` that `jaxmotion run` / `jaxmotion eval` writes. Rows are
 grouped by (config name, sampler, K); a group with several seeds gets one row per seed and a
 "mean +- sd" row (sd over seeds, ddof 1). Prints a markdown table; `--json` also writes the
 grouped figures. Runs without a metrics.json are listed as missing, not silently dropped.
+
+`--headline` prints the README's cross-method table instead: per K, one row per sampler (every
+method, each method's own CVAE from N(0, I), zero-velocity once), mean +- sd over the seeds given,
+the validity columns (bone deformation, angle violations, pose-prior NLL) and mode recall where
+any record has them, and each row's budget (config name) and training wall time (minutes, mean
+over seeds, from the stages' log.jsonl).
 """
 
 from __future__ import annotations
@@ -61,11 +68,81 @@ def table(groups: dict, metrics: tuple[str, ...]) -> tuple[str, dict]:
     return "\n".join(lines), summary
 
 
+# Sampler names (`Method.predictors` keys) -> headline row labels, in the table's order.
+LABELS = {
+    "zero_velocity": "zero-velocity",
+    "cvae": "DLow's CVAE, N(0, I)", "dlow": "DLow",
+    "divsamp_cvae": "DivSamp's CVAE, N(0, I)", "divsamp": "DivSamp",
+    "mojo_prior": "MOJO's CVAE, N(0, I)", "mojo": "MOJO", "mojo_proj": "MOJO + projection",
+    "gsps": "GSPS", "motionmap": "MotionMap",
+}
+HEADLINE_EXTRA = ("bone_deformation", "angle_violation", "prior_nll", "mode_recall", "CMD", "FID")
+
+
+def train_minutes(run: Path) -> float | None:
+    """Returns the run's training wall time in minutes: the sum over stages of the last logged `time_s`."""
+    total, found = 0.0, False
+    for log in run.glob("*/log.jsonl"):
+        last = None
+        for line in log.read_text().splitlines():
+            try:
+                rec = json.loads(line)
+            except ValueError:
+                continue
+            if "time_s" in rec:
+                last = rec["time_s"]
+        if last is not None:
+            total, found = total + last, True
+    return total / 60 if found else None
+
+
+def headline(run_dirs: list[str], metrics: tuple[str, ...]) -> str:
+    """Returns the cross-method markdown tables (one per K) described in the module docstring."""
+    rows: dict = defaultdict(lambda: defaultdict(dict))  # (K, sampler) -> config -> seed -> metrics
+    minutes: dict = defaultdict(list)
+    for d in run_dirs:
+        f = Path(d) / "metrics.json"
+        if not f.is_file():
+            continue
+        for rec in json.loads(f.read_text()):
+            seed = int(rec.get("seed", rec["config"].get("seed", 0)))
+            rows[(int(rec["K"]), rec["method"])][rec["config"]["name"]][seed] = rec["metrics"]
+        m = train_minutes(Path(d))
+        if m is not None:
+            minutes[json.loads(f.read_text())[0]["config"]["name"]].append(m)
+    extra = [m for m in HEADLINE_EXTRA if any(m in v for r in rows.values() for c in r.values() for v in c.values())]
+    cols = list(metrics) + extra
+    order = {name: i for i, name in enumerate(LABELS)}
+    out = []
+    for k in sorted({k for k, _ in rows}, reverse=True):
+        out += [f"K = {k}", "", "| sampler | budget (config) | seeds | train min | " + " | ".join(cols) + " |",
+                "|" + " --- |" * (4 + len(cols))]
+        samplers = sorted((s for kk, s in rows if kk == k), key=lambda s: (order.get(s, len(order)), s))
+        for s in samplers:
+            configs = rows[(k, s)]
+            for name in sorted(configs)[: 1 if s == "zero_velocity" else None]:  # zero-velocity is the same in every run
+                by_seed = configs[name]
+                arr = np.array([[by_seed[sd].get(m, np.nan) for m in cols] for sd in sorted(by_seed)], float)
+                mean = np.nanmean(arr, 0) if np.isfinite(arr).any() else arr[0]
+                sd = arr.std(0, ddof=1) if len(arr) > 1 else None
+                cells = [
+                    "-" if not np.isfinite(mv) else f"{mv:.4f}" + ("" if sd is None or not np.isfinite(sv) else f" +- {sv:.4f}")
+                    for mv, sv in zip(mean, sd if sd is not None else [np.nan] * len(cols))
+                ]
+                mins = minutes.get(name)
+                wall = "-" if s == "zero_velocity" or not mins else f"{np.mean(mins):.0f}"
+                seeds = ",".join(map(str, sorted(by_seed)))
+                out.append(f"| {LABELS.get(s, s)} | {name} | {seeds} | {wall} | " + " | ".join(cells) + " |")
+        out.append("")
+    return "\n".join(out)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("runs", nargs="+", help="run directories (each with a metrics.json)")
     ap.add_argument("--metrics", nargs="+", default=list(DEFAULT_METRICS))
     ap.add_argument("--json", default=None, help="also write the grouped figures here")
+    ap.add_argument("--headline", action="store_true", help="the README's cross-method table, one per K")
     args = ap.parse_args(argv)
     groups, missing = load_runs(args.runs)
     for m in missing:
@@ -73,6 +150,9 @@ def main(argv: list[str] | None = None) -> int:
     if not groups:
         print("no finished run among the given directories", file=sys.stderr)
         return 1
+    if args.headline:
+        print(headline(args.runs, tuple(m for m in args.metrics if m not in ("ADE-m", "FDE-m")) + ("ADE-m",)))
+        return 0
     md, summary = table(groups, tuple(args.metrics))
     print(md)
     if args.json:

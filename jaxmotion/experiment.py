@@ -314,6 +314,19 @@ def format_record(rec: dict) -> str:
     return f"[{rec['dataset']}] {rec['method']:<13s} K={rec['K']:<3d} {vals} ({rec['wall_s']:.1f}s)"
 
 
+def most_multimodal(prep: Prepared, n: int) -> np.ndarray:
+    """Returns the indices of the `n` test windows whose multimodal ground truth is most spread, most spread first.
+
+    The spread of window i is the mean distance of its MM futures' end poses (PROTOCOL sec. 2 sets)
+    from its own true end pose: where a good stochastic predictor should show several distinct futures.
+    """
+    idx, mask = metrics.multimodal_gt(prep.x[:, -1], prep.dataset.mm_threshold)
+    idx, mask = np.asarray(idx), np.asarray(mask)
+    ends = prep.y[:, -1]
+    spread = (np.linalg.norm(ends[idx] - ends[:, None], axis=-1) * mask).sum(1) / mask.sum(1)
+    return np.argsort(-spread, kind="stable")[:n]
+
+
 def report(cfg: Config, prep: Prepared, params, workdir: Path, method: str | None = None) -> Path:
     """Writes `workdir/samples.png` and `samples.gif` (animated) for the test window whose ground truth is most multimodal.
 
@@ -324,11 +337,7 @@ def report(cfg: Config, prep: Prepared, params, workdir: Path, method: str | Non
 
     ds = prep.dataset
     k = max(cfg.eval_k)
-    idx, mask = metrics.multimodal_gt(prep.x[:, -1], ds.mm_threshold)
-    idx, mask = np.asarray(idx), np.asarray(mask)
-    ends = prep.y[:, -1]
-    spread = (np.linalg.norm(ends[idx] - ends[:, None], axis=-1) * mask).sum(1) / mask.sum(1)
-    i = int(np.argmax(spread))
+    i = int(most_multimodal(prep, 1)[0])
     fns = predictors(cfg, ds, params, k)
     method = method or _main_predictor(cfg, fns)
     fn = fns[method]
