@@ -34,6 +34,7 @@ class Settings:
     gsps_nk: tuple[int, int] = (10, 10)  # GSPS training samples per window, nk1 x nk2 (the release's)
     gsps_mm: int = 10  # pseudo ground-truth futures per window in GSPS's training step (the release's)
     hm_size: int = 128  # MotionMap's heatmap side (the release's 128 x 128)
+    peak_sizes: tuple[int, ...] = (1024, 2048, 4096)  # n x n products that measure the machine's peak (peak.py)
     warmup: int = 2
     repeats: int = 7
     models: tuple[str, ...] = MODELS
@@ -43,7 +44,7 @@ class Settings:
     def quick(cls, **kw) -> "Settings":
         """Returns tiny settings for a smoke test (seconds, not minutes; numbers not meaningful)."""
         base = dict(train_batch=8, sampler_batch=2, k=5, sample_batches=(1, 4), k_sweep=(1, 20), t_pred_sweep=(10, 30),
-                    t_pred=30, warmup=1, repeats=2, gsps_nk=(2, 2), gsps_mm=3, hm_size=16)
+                    t_pred=30, warmup=1, repeats=2, gsps_nk=(2, 2), gsps_mm=3, hm_size=16, peak_sizes=(256, 512))
         base.update(kw)
         return cls(**base)
 

@@ -3,7 +3,9 @@
 Run by `benchmarks/run.py` in its own process (`python -m benchmarks.jax_bench --settings JSON --out FILE`).
 Every function is jitted once per case; tracing + XLA compilation is timed separately from the runs
 (`lower(...).compile()`), and the timed runs call the compiled executable. Training steps donate
-their state, as `jaxmotion.train.loop.fit` does.
+their state, as `jaxmotion.train.loop.fit` does. After its timings, each case's FLOPs are counted
+(`benchmarks.flops.count`: XLA's cost analysis with the scans unrolled, and the matrix products
+alone), beside XLA's figure for the compiled executable, which counts loop bodies once.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from benchmarks import flops
 from benchmarks.harness import Case, PeakRSS, Settings, gsps_skeleton, measure, parents_for, plan
 from jaxmotion.models import divsamp, dlow, gsps, mojo
 from jaxmotion.models import motionmap as mm
@@ -48,6 +51,7 @@ def _train_runner(step, state, batch):
         jax.block_until_ready(metrics)
 
     run.compiled = compiled
+    run.count = lambda: flops.count(step, state, batch, jax.random.key(0))
     return run, tr, co
 
 
@@ -58,6 +62,7 @@ def _sample_runner(fn, *args):
         jax.block_until_ready(compiled(*args))
 
     run.compiled = compiled
+    run.count = lambda: flops.count(fn, *args)
     return run, tr, co
 
 
@@ -207,8 +212,13 @@ def main():
         rec = dict(dataclasses.asdict(c), case=c.name, framework="jax", trace_s=trace_s, compile_s=compile_s)
         rec.update(measure(run, s.warmup, s.repeats))
         rec.update(rss_before_mb=rss0, peak_rss_mb=mem.peak_mb(), wall_s=time.perf_counter() - t0)
+        # After the timings and the memory peak: counting lowers the case once more, with its loops unrolled.
+        rec.update(run.count(), xla_compiled_flops=float(run.compiled.cost_analysis()["flops"]))
+        if c.model == "dlow" and c.kind == "sample_prior":  # the case run.py checks the count on
+            rec["hand_matmul_flops"] = flops.dlow_prior_hand_count(dlow.DLowCVAE(dim=s.dim, horizon=c.t_pred), s.t_his, c.k)
         records.append(rec)
-        print(f"jax {c.name}: {rec['median_s'] * 1e3:.2f} ms (compile {compile_s:.1f} s)", flush=True)
+        print(f"jax {c.name}: {rec['median_s'] * 1e3:.2f} ms (compile {compile_s:.1f} s), {rec['flops'] / 1e9:.3g} GFLOP",
+              flush=True)
         del run
         jax.clear_caches()
     info = {"framework": "jax", "versions": {"jax": jax.__version__, "jaxlib": importlib.metadata.version("jaxlib"),

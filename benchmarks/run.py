@@ -1,6 +1,6 @@
 """jaxmotion vs PyTorch, the same networks side by side: one command, one process per framework.
 
-    python benchmarks/run.py            # full run (CPU here: about 8 minutes), updates benchmarks/README.md
+    python benchmarks/run.py            # full run (CPU here: about 10 minutes), updates benchmarks/README.md
     python benchmarks/run.py --quick    # smoke test: tiny sizes, seconds per case, README untouched
 
 Workers run one after the other (never concurrently, so they do not share cores):
@@ -9,6 +9,12 @@ Workers run one after the other (never concurrently, so they do not share cores)
 them into `benchmarks/results/<tag>.json` and renders the table of `benchmarks/README.md`, with
 ratios PyTorch time / jaxmotion time (> 1: jaxmotion is faster). On a shared machine, run it under
 the lock: `flock /tmp/jaxmotion-heavy.lock python benchmarks/run.py`.
+
+Roofline: before the cases, `benchmarks/peak.py` measures each framework's rate on large float32
+(and, where the CPU has the instructions, bfloat16) matrix products; the machine's peak is the
+higher float32 figure. Each case's FLOPs are XLA's cost analysis of the jaxmotion function with
+its scans unrolled (`benchmarks/flops.py`), and the same count divides the PyTorch times, so
+"% of peak" compares useful work per second. A hand count of one case checks the count.
 """
 
 from __future__ import annotations
@@ -52,6 +58,17 @@ def run_worker(name: str, settings: Settings, extra: list[str]) -> dict:
     return result
 
 
+def run_peak(framework: str, settings: Settings) -> dict:
+    """Returns `benchmarks/peak.py`'s measurement of `framework` ("jax" or "torch"), run in a fresh process."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "peak.json"
+        cmd = [sys.executable, "-m", "benchmarks.peak", "--framework", framework, "--out", str(out),
+               "--sizes", ",".join(map(str, settings.peak_sizes))]
+        if subprocess.run(cmd, cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT))).returncode != 0:
+            raise RuntimeError(f"peak measurement failed: {' '.join(cmd)}")
+        return json.loads(out.read_text())
+
+
 def merge(results: dict[str, dict]) -> list[dict]:
     """Returns one row per case with every framework's record and the ratios to jaxmotion."""
     rows: dict[str, dict] = {}
@@ -88,6 +105,38 @@ def _wps(row: dict, fw: str) -> str:
     return f"{row['batch'] / rec['median_s']:.0f}" if rec and "median_s" in rec else "-"
 
 
+PEAK_OF = {"jax": "jax", "torch_eager": "torch", "torch_compile": "torch"}  # whose peak.py measurement
+
+
+def machine_peak(doc: dict) -> float | None:
+    """Returns this machine's float32 peak in GFLOP/s: the higher of the frameworks' large-product rates."""
+    rates = [p["peak_gflops"]["float32"] for p in doc.get("peak", {}).values()]
+    return max(rates) if rates else None
+
+
+def _gflops(row: dict, fw: str) -> float | None:
+    """Returns the case's useful work rate under `fw`: jaxmotion's FLOP count of the case / `fw`'s time."""
+    rec, flops = row.get(fw), row.get("jax", {}).get("flops")
+    return flops / rec["median_s"] / 1e9 if rec and "median_s" in rec and flops else None
+
+
+def _pct(row: dict, fw: str, peak: float | None) -> str:
+    g = _gflops(row, fw)
+    if g is None or not peak:
+        return "-"
+    v = 100 * g / peak
+    return f"{v:.0f}%" if v >= 10 else f"{v:.1f}%"
+
+
+def _pcts(row: dict, fws: tuple[str, ...], peak: float | None) -> str:
+    return " / ".join(_pct(row, fw, peak) for fw in fws)
+
+
+def _gflop(row: dict) -> str:
+    f = row.get("jax", {}).get("flops")
+    return f"{f / 1e9:.3g}" if f else "-"
+
+
 def _target(row: dict, s: Settings) -> str:
     r = row.get("ratio_torch_eager")
     if row["kind"].startswith("train"):
@@ -107,6 +156,8 @@ def render(doc: dict) -> str:
     rows = doc["rows"]
     info = doc["workers"]
     m = doc["machine"]
+    peak = machine_peak(doc)
+    eager, compiled = ("jax", "torch_eager"), ("jax", "torch_eager", "torch_compile")
     lines = [
         f"Run {doc['date']} on **{m['cpu']}**, {m['logical_cpus']} logical CPUs, {m['memory_gib']} GiB "
         f"({m['os']}, Python {m['python']}); "
@@ -118,41 +169,45 @@ def render(doc: dict) -> str:
         f"Every time is the median of {s.repeats} runs after {s.warmup} warm-up runs, with the interquartile "
         "range in brackets, in milliseconds. Ratio = PyTorch time / jaxmotion time (> 1: jaxmotion faster).",
         "",
+        _peak_paragraph(doc, peak),
+        "",
         "### Training throughput",
         "",
-        "| model | stage | batch | jaxmotion ms | PyTorch eager ms | ratio (eager) | windows/s jax / eager | target |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+        "| model | stage | batch | jaxmotion ms | PyTorch eager ms | ratio (eager) | windows/s jax / eager | GFLOP | % of peak jax / eager | target |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for r in rows:
         if r["kind"].startswith("train"):
             stage = {"train_cvae": "CVAE", "train_ae": "autoencoder",
                      "train_generator": f"generator (nk1 x nk2 = {r['k']})"}.get(r["kind"], f"sampler (K = {r['k']})")
             lines.append(f"| {r['model']} | {stage} | {r['batch']} | {_ms(r.get('jax'))} | {_ms(r.get('torch_eager'))} | "
-                         f"{_ratio(r, 'torch_eager')} | {_wps(r, 'jax')} / {_wps(r, 'torch_eager')} | {_target(r, s)} |")
+                         f"{_ratio(r, 'torch_eager')} | {_wps(r, 'jax')} / {_wps(r, 'torch_eager')} | {_gflop(r)} | "
+                         f"{_pcts(r, eager, peak)} | {_target(r, s)} |")
     lines += [
         "",
         f"### Sampling K = {s.k} futures (the method's own sampler)",
         "",
-        "| model | batch | jaxmotion ms | PyTorch eager ms | torch.compile ms | ratio (eager) | ratio (compile) | target |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+        "| model | batch | jaxmotion ms | PyTorch eager ms | torch.compile ms | ratio (eager) | ratio (compile) | GFLOP | % of peak jax / eager / compile | target |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for r in rows:
         if r["kind"] == "sample":
             lines.append(f"| {r['model']} | {r['batch']} | {_ms(r.get('jax'))} | {_ms(r.get('torch_eager'))} | "
                          f"{_ms(r.get('torch_compile'))} | {_ratio(r, 'torch_eager')} | {_ratio(r, 'torch_compile')} | "
-                         f"{_target(r, s)} |")
+                         f"{_gflop(r)} | {_pcts(r, compiled, peak)} | {_target(r, s)} |")
     heat = [r for r in rows if r["kind"] == "heatmap"]
     if heat:
         lines += [
             "",
             f"### MotionMap's heatmap network ({s.hm_size} x {s.hm_size} map of each window, sigmoid included)",
             "",
-            "| model | batch | jaxmotion ms | PyTorch eager ms | torch.compile ms | ratio (eager) | ratio (compile) |",
-            "| --- | --- | --- | --- | --- | --- | --- |",
+            "| model | batch | jaxmotion ms | PyTorch eager ms | torch.compile ms | ratio (eager) | ratio (compile) | GFLOP | % of peak jax / eager / compile |",
+            "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
         ]
         for r in heat:
             lines.append(f"| {r['model']} | {r['batch']} | {_ms(r.get('jax'))} | {_ms(r.get('torch_eager'))} | "
-                         f"{_ms(r.get('torch_compile'))} | {_ratio(r, 'torch_eager')} | {_ratio(r, 'torch_compile')} |")
+                         f"{_ms(r.get('torch_compile'))} | {_ratio(r, 'torch_eager')} | {_ratio(r, 'torch_compile')} | "
+                         f"{_gflop(r)} | {_pcts(r, compiled, peak)} |")
     for axis, label in (("k", "K"), ("t_pred", "t_pred")):
         lines += [
             "",
@@ -165,6 +220,7 @@ def render(doc: dict) -> str:
         sel = [r for r in rows if r["kind"] == "sample_prior" and r[fixed] == getattr(s, fixed)]
         for r in sorted(sel, key=lambda r: (MODELS.index(r["model"]), r[axis])):
             lines.append(f"| {r['model']} | {r[axis]} | {_ms(r.get('jax'))} | {_ms(r.get('torch_eager'))} | {_ratio(r, 'torch_eager')} |")
+    lines += _roofline(rows, peak, s)
     lines += [
         "",
         "### Peak memory and jaxmotion compile time",
@@ -185,6 +241,58 @@ def render(doc: dict) -> str:
             tc = f"{c['compile_s']:.0f}" if c.get("compile_s") == c.get("compile_s") and "compile_s" in c else "-"
             lines.append(f"| {r['case']} | {mb(j)} | {mb(e)} | {comp} | {tc} |")
     return "\n".join(lines)
+
+
+def _peak_paragraph(doc: dict, peak: float | None) -> str:
+    """Returns the sentence that says what the machine's peak is and how "% of peak" is computed."""
+    pk = doc.get("peak", {})
+    if not pk:
+        return "No peak measured in this run (no `peak` in the results file): no \"% of peak\" figures."
+    names = {"jax": "jax", "torch": "PyTorch"}
+    rates = "; ".join(f"{names[fw]} " + ", ".join(f"{dt} {v:.0f}" for dt, v in p["peak_gflops"].items())
+                      for fw, p in pk.items())
+    first = next(iter(pk.values()))
+    bf16 = ", ".join(first.get("bf16_instructions", [])) or "none (bfloat16 not measured)"
+    return (f"Peak, measured in this run (`benchmarks/peak.py`: n x n matrix products, n = "
+            f"{'/'.join(map(str, first['sizes']))}, the best n), GFLOP/s: {rates}. CPU bfloat16 instructions: {bf16}. "
+            f"% of peak = the case's FLOPs (XLA's cost analysis of the jaxmotion function with its scans unrolled, "
+            f"`benchmarks/flops.py`) / its time / {peak:.0f} GFLOP/s, the higher float32 figure. PyTorch's times are "
+            "divided by the same FLOP count (its twins do somewhat more work in DLow's and MOJO's decoders), so the "
+            "figure is useful work per second.")
+
+
+def _roofline(rows: list[dict], peak: float | None, s: Settings) -> list[str]:
+    """Returns the roofline table (every case) and the hand check of the FLOP count; nothing for a run without counts."""
+    if not any("flops" in r.get("jax", {}) for r in rows):
+        return []
+    lines = [
+        "",
+        "### Roofline: FLOPs and the fraction of the measured peak, every case",
+        "",
+        "GFLOP = XLA's cost analysis with the scans unrolled (matrix products and elementwise work); "
+        "products = the matrix products' share, counted from the jaxpr; XLA compiled = "
+        "`compiled.cost_analysis()` of the executable that runs, which counts a loop body once.",
+        "",
+        "| case | GFLOP | products | XLA compiled GFLOP | jaxmotion GFLOP/s (% of peak) | PyTorch eager GFLOP/s (% of peak) | torch.compile GFLOP/s (% of peak) |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    rate = lambda r, fw: f"{_gflops(r, fw):.3g} ({_pct(r, fw, peak)})" if _gflops(r, fw) is not None else "-"  # noqa: E731
+    for r in rows:
+        j = r.get("jax", {})
+        if "flops" not in j:
+            continue
+        lines.append(f"| {r['case']} | {j['flops'] / 1e9:.3g} | {100 * j['matmul_flops'] / j['flops']:.0f}% | "
+                     f"{j['xla_compiled_flops'] / 1e9:.3g} | {rate(r, 'jax')} | {rate(r, 'torch_eager')} | "
+                     f"{rate(r, 'torch_compile')} |")
+    checked = [r for r in rows if "hand_matmul_flops" in r.get("jax", {})]
+    check = next((r for r in checked if (r["k"], r["t_pred"]) == (s.k, s.t_pred)), checked[0] if checked else None)
+    if check:
+        j = check["jax"]
+        lines += ["", f"Check of the count, {check['case']}: matrix products by hand {j['hand_matmul_flops'] / 1e9:.6f} "
+                  f"GFLOP (`flops.dlow_prior_hand_count`), from the jaxpr {j['matmul_flops'] / 1e9:.6f}; XLA with the "
+                  f"scans unrolled {j['flops'] / 1e9:.6f} (the products plus elementwise work); XLA's compiled "
+                  f"executable {j['xla_compiled_flops'] / 1e9:.6f} (the decoder's {check['t_pred']}-step loop counted once)."]
+    return lines
 
 
 def update_readme(readme: Path, section: str) -> None:
@@ -248,6 +356,9 @@ def main(argv=None):
                 results[fw] = {"info": w["info"], "records": [r[fw] | {k: r[k] for k in ("case", "model", "kind", "batch", "k", "t_pred")}
                                                               for r in previous["rows"] if fw in r]}
     t0 = time.perf_counter()
+    peaks = dict(previous.get("peak", {})) if previous else {}
+    for fw in dict.fromkeys(PEAK_OF[f] for f in frameworks if f != "torch_compile" or args.compile_cases):
+        peaks[fw] = run_peak(fw, settings)
     for fw in frameworks:
         if fw == "torch_compile" and not args.compile_cases:
             continue
@@ -259,6 +370,7 @@ def main(argv=None):
         "machine": machine(),
         "settings": dataclasses.asdict(settings),
         "workers": {k: {"info": v["info"]} for k, v in results.items()},
+        "peak": peaks,
         "rows": merge(results),
     }
     doc["wall_s"] = time.perf_counter() - t0

@@ -20,6 +20,7 @@ from pathlib import Path
 import jax
 
 from jaxmotion import experiment, metrics
+from jaxmotion.compile_time import CompileTimer
 from jaxmotion.config import load_config
 
 
@@ -41,20 +42,10 @@ def main(argv=None):
     full = experiment.prepare(ds)
     sub = experiment.prepare(ds, args.windows)
     params = experiment.restore(cfg, full, Path(args.workdir))
-    x_all, y_all = full.x, full.y
     rows = []
     for name in args.methods:
         for k in args.ks:
-            fn = experiment.predictors(cfg, ds, params, k)[name]
-            batch = max(1, min(cfg.eval_batch, 8000 // k))  # bounds memory at large K
-            t0 = time.perf_counter()
-            chunks = experiment.predict_chunks(fn, sub.x, jax.random.key(cfg.seed + 7), batch)
-            m = metrics.evaluate_windows(
-                chunks, sub.y, sub.x[:, -1], thr=ds.mm_threshold,
-                reference_last_poses=x_all[:, -1], reference_futures=y_all,
-            )
-            rec = {"method": name, "K": k, "n_windows": len(sub.x), "wall_s": round(time.perf_counter() - t0, 2),
-                   **{key: float(m[key]) for key in metrics.METRIC_NAMES}}
+            rec = sweep_point(cfg, ds, params, full, sub, name, k)
             rows.append(rec)
             print(json.dumps(rec), flush=True)
     out = Path(args.out)
@@ -64,6 +55,24 @@ def main(argv=None):
     out.with_suffix(".json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=1))
     plot(rows, out.with_suffix(".png"), f"{ds.name}: {len(sub.x)} of {len(full.x)} test windows (evenly spaced)")
     print(f"wrote {out.with_suffix('.json')} and {out.with_suffix('.png')}")
+
+
+def sweep_point(cfg, ds, params, full: experiment.Prepared, sub: experiment.Prepared, name: str, k: int) -> dict:
+    """Returns one row of the sweep: predictor `name`'s K futures of the `sub` windows, with MM sets over all `full` test windows.
+
+    `wall_s` covers sampling and metrics; `compile_s`, the part of it spent compiling (`CompileTimer`).
+    """
+    fn = experiment.predictors(cfg, ds, params, k)[name]
+    batch = max(1, min(cfg.eval_batch, 8000 // k))  # bounds memory at large K
+    t0 = time.perf_counter()
+    with CompileTimer() as compiling:
+        chunks = experiment.predict_chunks(fn, sub.x, jax.random.key(cfg.seed + 7), batch)
+        m = metrics.evaluate_windows(
+            chunks, sub.y, sub.x[:, -1], thr=ds.mm_threshold,
+            reference_last_poses=full.x[:, -1], reference_futures=full.y,
+        )
+    return {"method": name, "K": k, "n_windows": len(sub.x), "wall_s": round(time.perf_counter() - t0, 2),
+            "compile_s": round(compiling.seconds, 2), **{key: float(m[key]) for key in metrics.METRIC_NAMES}}
 
 
 def plot(rows: list[dict], path: Path, title: str):

@@ -3,8 +3,10 @@
     jaxmotion run                                   # synthetic data -> CVAE -> DLow -> metrics + PNG
     jaxmotion run --config experiments/configs/dlow_bandai.py --data ../shared/data/bandai-namco-2
     jaxmotion train --config CFG [--data PATH] [--workdir DIR] [--resume]
+    jaxmotion train --config CFG --coordinator-address HOST:PORT --num-processes N --process-id I   # in each of N processes
     jaxmotion eval --config CFG [--data PATH] [--workdir DIR]
     jaxmotion sample --config CFG [--workdir DIR] --window 3 --k 50 --method dlow
+    jaxmotion sample --config experiments/configs/gsps_synthetic.py --window 208 --fix-part lower   # one lower body, 10 upper bodies
     jaxmotion methods                               # the registered methods and their stages' settings type
     jaxmotion predict RUN_DIR --input clip.bvh [--frame F] [--k K] [--method M] --out DIR   # your own motion
 """
@@ -12,7 +14,10 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -35,10 +40,16 @@ def _parser() -> argparse.ArgumentParser:
                        help="a plain BVH folder's test files (glob patterns on path, name or stem); default: by subject, else the last 20%% of files")
         if name in ("run", "train"):
             s.add_argument("--resume", action="store_true", help="continue from the latest checkpoints in --workdir")
+        if name in ("run", "train", "eval"):
+            _distributed_flags(s)
         if name == "sample":
             s.add_argument("--window", type=int, default=0, help="test window index")
-            s.add_argument("--k", type=int, default=None, help="number of futures (default: largest K of the config)")
+            s.add_argument("--k", type=int, default=None, help="number of futures (default: largest K of the config; 10 with --fix-part)")
             s.add_argument("--method", default=None, help="which sampler (default: the config's method; also cvae, zero_velocity)")
+            s.add_argument("--fix-part", nargs="+", default=None, metavar="PART",
+                           help="body-part control (GSPS): hold these parts' noise (lower | upper; with GSPSConfig.parts='five': "
+                                "torso right_leg left_leg right_arm left_arm) and vary the rest. The first part predicted "
+                                "(lower) is then identical across the K samples; a later one still follows the varying earlier parts")
     sub.add_parser("methods", help="list the registered methods")
     s = sub.add_parser("predict", help="K futures of your own clip (BVH or npz of joint positions) from a trained run")
     s.add_argument("run_dir", help="a trained work directory (with predictor.json)")
@@ -51,6 +62,15 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=int, default=0, help="seed of the sampling key")
     s.add_argument("--out", required=True, help="output folder: futures.npz, future_NN.bvh, samples.gif")
     return p
+
+
+def _distributed_flags(s: argparse.ArgumentParser) -> None:
+    g = s.add_argument_group("many processes", "jax.distributed: run the same command in every process (README 'Training on many devices')")
+    g.add_argument("--distributed", action="store_true",
+                   help="start jax.distributed; the settings below that are not given are detected (SLURM, Open MPI, Cloud TPU)")
+    g.add_argument("--coordinator-address", default=None, metavar="HOST:PORT", help="process 0's address (default: $JAX_COORDINATOR_ADDRESS)")
+    g.add_argument("--num-processes", type=int, default=None, metavar="N", help="number of processes (default: $JAX_NUM_PROCESSES)")
+    g.add_argument("--process-id", type=int, default=None, metavar="I", help="this process, 0 .. N-1 (default: $JAX_PROCESS_ID)")
 
 
 def _list_methods() -> int:
@@ -80,6 +100,10 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         print("\n".join(lines))
         return 0
+    from jaxmotion import distributed
+
+    if args.command in ("run", "train", "eval"):  # before anything runs on a device
+        distributed.initialize(args.coordinator_address, args.num_processes, args.process_id, auto=args.distributed)
     from jaxmotion import experiment
     from jaxmotion.config import load_config, validate
 
@@ -89,6 +113,7 @@ def main(argv: list[str] | None = None) -> int:
 
         cfg = dataclasses.replace(cfg, seed=args.seed)
     cfg = experiment.resolve(cfg)
+    part_control = _part_control(cfg, args.method) if args.command == "sample" and args.fix_part else None
     workdir = Path(args.workdir or Path("runs") / cfg.name).absolute()
     t0 = time.perf_counter()
     ds = experiment.load_data(cfg, args.data, args.test_files)
@@ -107,7 +132,11 @@ def main(argv: list[str] | None = None) -> int:
         params = experiment.train(cfg, prep, workdir, resume=args.resume)
     else:
         params = experiment.restore(cfg, prep, workdir)
-    if args.command in ("run", "eval"):
+    if args.command in ("run", "eval") and not distributed.is_main():
+        # Its devices predict their share of the test windows; process 0 writes the metrics and pictures.
+        with tempfile.TemporaryDirectory() as scratch, contextlib.redirect_stdout(io.StringIO()):
+            experiment.evaluate(cfg, prep, params, Path(scratch), label)
+    elif args.command in ("run", "eval"):
         experiment.evaluate(cfg, prep, params, workdir, label)
         png = experiment.report(cfg, prep, params, workdir)
         print(f"report: {workdir}  (metrics.json, {png.name}, samples.gif, predictor.json, checkpoints)  total {time.perf_counter() - t0:.0f}s")
@@ -120,6 +149,9 @@ def main(argv: list[str] | None = None) -> int:
 
         if not 0 <= args.window < len(prep.windows):
             raise SystemExit(f"--window must be in [0, {len(prep.windows)}), got {args.window}")
+        if part_control is not None:
+            print(_sample_fixed_parts(part_control, cfg, prep, params, args.window, args.k or 10, tuple(args.fix_part), workdir, label))
+            return 0
         k = args.k or max(cfg.eval_k)
         args.method = args.method or cfg.method
         fns = experiment.predictors(cfg, ds, params, k)
@@ -136,6 +168,43 @@ def main(argv: list[str] | None = None) -> int:
     else:
         print(f"checkpoints: {workdir}  total {time.perf_counter() - t0:.0f}s")
     return 0
+
+
+def _part_control(cfg, method: str | None):
+    """Returns the config's method's part-control sampler (`Method.part_control`); exits with the reason when there is none."""
+    from jaxmotion.methods import get_method, methods
+
+    m = get_method(cfg.method)
+    if m.part_control is None:
+        have = sorted(n for n, x in methods().items() if x.part_control is not None)
+        raise SystemExit(f"--fix-part: method {cfg.method!r} has no body-part control (methods that have: {', '.join(have)})")
+    if method not in (None, cfg.method):
+        raise SystemExit(f"--fix-part samples the run's own method ({cfg.method}), not --method {method}")
+    return m.part_control
+
+
+def _sample_fixed_parts(part_control, cfg, prep, params, i: int, k: int, fix: tuple[str, ...], workdir: Path, label: str) -> str:
+    """Writes K part-controlled futures of test window `i` (.npz and a `viz.plot_futures` PNG); returns what it wrote and held."""
+    import jax
+    import numpy as np
+
+    from jaxmotion.viz import plot_futures
+
+    ds = prep.dataset
+    try:
+        preds = np.asarray(part_control(cfg, ds, params, prep.x[i : i + 1], jax.random.key(cfg.seed), k, fix))[0]
+    except ValueError as e:  # an unknown part name: the message lists the valid ones
+        raise SystemExit(f"--fix-part: {e}") from None
+    spread = preds.reshape(k, ds.t_pred, -1, 3).std(axis=0).max(axis=(0, 2))  # per joint (root dropped), m
+    held = spread < 1e-5  # identical up to float32 rounding
+    out = workdir / f"sample_w{i}_{cfg.method}_k{k}_fix-{'-'.join(fix)}"
+    np.savez(out.with_suffix(".npz"), x=prep.x[i], y=prep.y[i], preds=preds, fix=np.asarray(fix), joint_spread=spread)
+    plot_futures(prep.x[i], preds, prep.y[i], ds.skeleton.parents, out.with_suffix(".png"),
+                 title=f"{cfg.method} part control: {', '.join(fix)} held, the rest varies ({label}: test window {i}, K={k})")
+    names = [n for n, h in zip(ds.skeleton.names[1:], held) if h]
+    return (f"wrote {out}.npz and {out}.png\n{len(names)} of {len(held)} joints identical across the {k} samples"
+            f"{': ' + ', '.join(names) if names else ''}; the others' std over the samples is up to "
+            f"{spread[~held].max() if (~held).any() else 0.0:.3f} m")
 
 
 def entry() -> int:

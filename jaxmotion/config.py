@@ -49,7 +49,9 @@ class Config:
     # Training windows: "windows" (each valid window equally likely) or "sequences" (DLow's release:
     # a sequence uniformly, then a start). Every measured table used "windows".
     train_sampler: str = "windows"
-    mm_deviation: str | None = None  # None (protocol), "divsamp" or "comusion"
+    # None (protocol), "divsamp", "comusion" (`metrics.reduce_mm`) or "gsps" (GSPS's release: a test
+    # window whose MM set is itself alone is skipped in every metric, `experiment.skip_single_future`).
+    mm_deviation: str | None = None
     # Learning curves: every `curve_every` training steps (0: never) each stage evaluates APD, ADE,
     # FDE, MMADE and MMFDE of the predictors its parameters so far allow, at K = `curve_k`, on
     # `curve_windows` evenly spaced test windows (their MM sets over every test window), into its
@@ -103,7 +105,7 @@ def _unknown_fields(path: Path, namespace: dict) -> list[str]:
     return problems
 
 
-_CHOICES = {"train_sampler": ("windows", "sequences"), "mm_deviation": (None, "divsamp", "comusion")}
+_CHOICES = {"train_sampler": ("windows", "sequences"), "mm_deviation": (None, "divsamp", "comusion", "gsps")}
 # `Config`'s intervals: (field, rule, what the rule asks), checked once the field's type is right.
 _CONFIG_RULES = (
     *((n, lambda v: v >= 1, ">= 1") for n in ("ckpt_every", "log_every", "eval_batch")),

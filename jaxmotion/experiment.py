@@ -19,8 +19,10 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-from jaxmotion import metrics
+from jaxmotion import distributed, metrics
+from jaxmotion.compile_time import CompileTimer
 from jaxmotion.config import Config, to_dict
 from jaxmotion.data.datasets import BANDAI_TARBALL, load_dataset
 from jaxmotion.data.folder_split import folder_split
@@ -146,7 +148,8 @@ def train(cfg: Config, prep: Prepared, workdir: str | Path, resume: bool = False
     """
     from jaxmotion.predictor import write_manifest
 
-    write_manifest(resolve(cfg), prep.dataset, workdir)
+    if distributed.is_main():
+        write_manifest(resolve(cfg), prep.dataset, workdir)
     curve = learning_curve(cfg, prep) if cfg.curve_every > 0 else None
     return runner.train(get_method(cfg.method), cfg, prep, workdir, resume=resume, curve=curve)
 
@@ -215,15 +218,42 @@ def reference_sets(method: Method, prep: Prepared):
     return sets, ref[:, ds.t_his :]
 
 
-def predict_chunks(fn: Predictor, x: np.ndarray, key: jax.Array, batch: int):
-    """Yields `(b, K, t_pred, D)` numpy predictions over `x` in fixed-size (padded) batches."""
+def skip_single_future(prep: Prepared, method: Method) -> Prepared:
+    """Returns `prep` without the test windows whose MM set is themselves alone (`Config.mm_deviation="gsps"`).
+
+    GSPS's release (`eval.py`: `if gt_multi.shape[0] == 1: continue`) skips such a window in every
+    metric and averages over the others. MM membership is symmetric (PROTOCOL sec. 2), so no
+    remaining window loses a member: the protocol on the remaining windows is that deviation.
+    """
+    if method.reference_futures != "test":
+        raise ValueError(f"mm_deviation='gsps' needs test-window reference futures; method {method.name!r} uses training windows")
+    sets = metrics.multimodal_gt(prep.x[:, -1], prep.dataset.mm_threshold)
+    idx, mask = np.asarray(sets.idx), np.asarray(sets.mask)
+    sel = np.flatnonzero((mask & (idx != np.arange(len(idx))[:, None])).any(axis=1))
+    if len(sel) == 0:
+        raise ValueError(f"mm_deviation='gsps': none of the {len(idx)} test windows has another window within the MM threshold")
+    return dataclasses.replace(prep, windows=prep.windows[sel], seq_index=prep.seq_index[sel], starts=prep.starts[sel],
+                               keep=prep.keep[sel])
+
+
+def predict_chunks(fn: Predictor, x: np.ndarray, key: jax.Array, batch: int, *, mesh: Mesh | None = None):
+    """Yields `(b, K, t_pred, D)` numpy predictions over `x` in fixed-size (padded) batches of `batch` windows.
+
+    Each batch is split over the devices of `mesh` (default `distributed.data_mesh()`: every device
+    of every process), each predicting its share of the windows; a batch is padded to a multiple of
+    the device count. With several processes every one calls this alike and receives every prediction.
+    """
+    mesh = distributed.data_mesh() if mesh is None else mesh
+    sharding = NamedSharding(mesh, PartitionSpec("data"))
+    size = -(-batch // mesh.size) * mesh.size
     n = x.shape[0]
     for i, s in enumerate(range(0, n, batch)):
         xb = x[s : s + batch]
         c = xb.shape[0]
-        if c < batch:
-            xb = np.concatenate([xb, np.repeat(xb[-1:], batch - c, axis=0)])
-        yield np.asarray(fn(jnp.asarray(xb), jax.random.fold_in(key, i)))[:c]
+        if c < size:
+            xb = np.concatenate([xb, np.repeat(xb[-1:], size - c, axis=0)])
+        out = fn(distributed.global_batch(xb, sharding), jax.random.fold_in(key, i))
+        yield distributed.gather(out)[:c]
 
 
 def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str | None = None) -> list[dict]:
@@ -235,6 +265,9 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
     ds = prep.dataset
     method = get_method(cfg.method)
     cfg = resolve(cfg)
+    deviation = cfg.mm_deviation
+    if deviation == "gsps":  # GSPS's release: windows whose MM set is themselves alone enter no metric
+        prep, deviation = skip_single_future(prep, method), None
     modes = None
     if ds.known_modes is not None:
         modes = ds.known_modes(ds)
@@ -253,7 +286,7 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
 
         write_manifest(cfg, ds, workdir)
     records = []
-    extra_fn = method.extra_metrics
+    extra_fn, record_fields = method.evaluation_hooks(cfg, ds, params)
     for k in cfg.eval_k:
         for name, fn in method.predictors(cfg, ds, params, k).items():
             t0 = time.perf_counter()
@@ -264,17 +297,22 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
                     if modes is not None:
                         sl = slice(i * cfg.eval_batch, i * cfg.eval_batch + p.shape[0])
                         n, P = p.shape[0], modes.modes.shape[1]
+                        # The last batch is padded to the others' size so that mode_recall compiles once.
+                        fill = lambda a: np.concatenate([a, np.repeat(a[-1:], cfg.eval_batch - n, axis=0)])  # noqa: E731
+                        b = cfg.eval_batch
                         r, w = metrics.mode_recall(
-                            p, modes.modes[sl], np.broadcast_to(modes.probs, (n, P)), np.ones((n, P), bool), cfg.mode_threshold
+                            fill(p), fill(modes.modes[sl]), np.broadcast_to(modes.probs, (b, P)), np.ones((b, P), bool),
+                            cfg.mode_threshold,
                         )
-                        recalls.append((np.asarray(r), np.asarray(w)))
+                        recalls.append((np.asarray(r)[:n], np.asarray(w)[:n]))
                     if extra_fn is not None:
                         extras.append(extra_fn(ds, p, y[i * cfg.eval_batch : i * cfg.eval_batch + p.shape[0]]))
                     yield p
 
-            m = metrics.evaluate_windows(
-                chunks(), y, mm, thr=thr, reference_futures=ref_futures, mm_deviation=cfg.mm_deviation
-            )
+            with CompileTimer() as compiling:  # the predictor's first call, and the metrics' at a new K, compile
+                m = metrics.evaluate_windows(
+                    chunks(), y, mm, thr=thr, reference_futures=ref_futures, mm_deviation=deviation
+                )
             m.pop("n_windows")  # a top-level field of the record (PROTOCOL sec. 5)
             if modes is not None:
                 sel = modes.boundary <= cfg.mode_max_boundary
@@ -294,10 +332,11 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
                 "n_windows": int(len(x)),
                 "metrics": m,
                 "seed": cfg.seed,
-                "config": to_dict(cfg),
+                "config": {**to_dict(cfg), **record_fields},
                 "jax_version": jax.__version__,
                 "device": f"{jax.devices()[0].platform}:{jax.devices()[0].device_kind} ({platform.machine()})",
                 "wall_s": round(wall, 3),
+                "compile_s": round(compiling.seconds, 3),  # part of wall_s: tracing + XLA compilation
             }
             records.append(rec)
             print(format_record(rec), flush=True)
@@ -311,7 +350,8 @@ def format_record(rec: dict) -> str:
     m = rec["metrics"]
     keys = ["APD", "ADE", "FDE", "MMADE", "MMFDE", "ADE-m", "FDE-m", "mode_recall", "mode_recall_weighted"]
     vals = " ".join(f"{k}={m[k]:.4f}" for k in keys if k in m)
-    return f"[{rec['dataset']}] {rec['method']:<13s} K={rec['K']:<3d} {vals} ({rec['wall_s']:.1f}s)"
+    compiling = f", {rec['compile_s']:.1f}s compiling" if "compile_s" in rec else ""
+    return f"[{rec['dataset']}] {rec['method']:<13s} K={rec['K']:<3d} {vals} ({rec['wall_s']:.1f}s{compiling})"
 
 
 def most_multimodal(prep: Prepared, n: int) -> np.ndarray:
@@ -331,7 +371,8 @@ def report(cfg: Config, prep: Prepared, params, workdir: Path, method: str | Non
     """Writes `workdir/samples.png` and `samples.gif` (animated) for the test window whose ground truth is most multimodal.
 
     That is the window whose multimodal ground-truth futures (PROTOCOL sec. 2) end furthest apart
-    on average: where a good stochastic predictor should show several distinct futures.
+    on average: where a good stochastic predictor should show several distinct futures. A method
+    with `Method.pictures` draws its own pictures of that window too; their paths are printed.
     """
     from jaxmotion.viz import plot_futures  # matplotlib: imported only when a picture is drawn
 
@@ -351,6 +392,9 @@ def report(cfg: Config, prep: Prepared, params, workdir: Path, method: str | Non
 
     animate_futures(prep.x[i], preds, prep.y[i], ds.skeleton.parents, workdir / "samples.gif", fps=ds.fps,
                     title=f"{ds.name}: test window {i}, {method}, K={k}; observed, then the futures")
+    pictures = get_method(cfg.method).pictures
+    for path in pictures(cfg, prep, params, workdir, i) if pictures is not None else ():
+        print(f"picture: {path}", flush=True)
     return png
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import jax
@@ -27,6 +28,8 @@ import optax
 Predictor = Callable[[jax.Array, jax.Array], jax.Array]
 # `(params, frozen, batch, key) -> (loss, metrics)`; with BatchNorm `(loss, (metrics, new_batch_stats))`.
 LossFn = Callable[[Any, Any, Any, jax.Array], tuple]
+# `(ds, pred (n, K, t_pred, D), gt (n, t_pred, D)) -> {name: (n,) per-window array}`.
+ExtraMetrics = Callable[[Any, np.ndarray, np.ndarray], dict[str, np.ndarray]]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,6 +77,17 @@ class Method:
     - `predictors(cfg, ds, params, k) -> {name: Predictor}`: jitted samplers of K futures, including
       the baselines the method is compared against; `params` is `{stage name: trained parameters}`.
     - `extra_metrics(ds, pred, gt) -> {name: (n,) per-window array}`: optional, added to evaluation.
+    - `trained_metrics(cfg, ds, params) -> extra_metrics`: optional; for metrics that need the trained
+      stages (GSPS's angle bounds and pose prior), an `extra_metrics` function bound to them, which
+      evaluation uses instead of `extra_metrics`.
+    - `record_fields(cfg, ds, params) -> dict`: optional; added to every evaluation record's `config`
+      (what the evaluation used that the config does not hold, e.g. GSPS's measured angle bounds).
+    - `part_control(cfg, ds, params, x, key, k, fix) -> (b, K, t_pred, D)`: optional body-part control
+      (`jaxmotion sample --fix-part`): K futures in which the parts named in `fix` are held and the
+      others vary; it raises a ValueError naming the valid parts. None: the method has no part control.
+    - `pictures(cfg, prep, params, workdir, i) -> [Path]`: optional; the method's own pictures of test
+      window `i` (`prep` an `experiment.Prepared`), written into `workdir` by `experiment.report`
+      (`jaxmotion run`) beside `samples.png`, for the window it draws (MotionMap's maps and modes).
     - `reference_futures`: where the multimodal ground truth of MMADE/MMFDE comes from: "test"
       (PROTOCOL sec. 2: the futures of test windows with a similar last observed pose) or "train"
       (the futures of training windows, a pool of pseudo ground truth); "test" is the protocol.
@@ -88,7 +102,11 @@ class Method:
     config_type: type
     stages: Callable[[Any, Any], list[Stage]]
     predictors: Callable[[Any, Any, dict, int], dict[str, Predictor]]
-    extra_metrics: Callable[[Any, np.ndarray, np.ndarray], dict[str, np.ndarray]] | None = None
+    extra_metrics: ExtraMetrics | None = None
+    trained_metrics: Callable[[Any, Any, dict], ExtraMetrics] | None = None
+    record_fields: Callable[[Any, Any, dict], dict] | None = None
+    part_control: Callable[..., jax.Array] | None = None
+    pictures: Callable[[Any, Any, dict, Path, int], list[Path]] | None = None
     reference_futures: str = "test"
     description: str = ""
     # Predictors left out of the learning curves (`Config.curve_every`): constant or slow baselines.
@@ -97,6 +115,11 @@ class Method:
     def __post_init__(self):
         if self.reference_futures not in ("test", "train"):
             raise ValueError(f"Method {self.name!r}: reference_futures must be 'test' or 'train', got {self.reference_futures!r}")
+
+    def evaluation_hooks(self, cfg, ds, params: dict) -> tuple[ExtraMetrics | None, dict]:
+        """Returns `(extra metrics function or None, fields for every record's config)` for trained `params`."""
+        fn = self.trained_metrics(cfg, ds, params) if self.trained_metrics is not None else self.extra_metrics
+        return fn, (self.record_fields(cfg, ds, params) if self.record_fields is not None else {})
 
     def settings(self, cfg) -> Any:
         """Returns `cfg.method_config` checked against `config_type` (the default `config_type()` when it is None)."""

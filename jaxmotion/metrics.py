@@ -112,22 +112,58 @@ def _reduce_k(terms: Float[Array, "n k"], how: Literal["min", "median"]) -> Floa
     return jnp.min(terms, axis=-1) if how == "min" else jnp.median(terms, axis=-1)
 
 
+def _safe_sqrt(d2: Float[Array, "..."]) -> Float[Array, "..."]:
+    # The inner `where` keeps the gradient finite (zero) where a distance is 0, e.g. duplicate samples.
+    pos = d2 > 0
+    return jnp.where(pos, jnp.sqrt(jnp.where(pos, d2, 1.0)), 0.0)
+
+
+def _gram(a: Float[Array, "... p f"], b: Float[Array, "... q f"]) -> Float[Array, "... p q"]:
+    # HIGHEST: float32 products even where the default would be TF32 / bfloat16 (GPU, TPU).
+    return jnp.einsum("...pf,...qf->...pq", a, b, precision=lax.Precision.HIGHEST)
+
+
+# Samples per block of APD's product: beyond one block only the blocks on and above the diagonal
+# are computed, the others being their transposes (K = 1000: 36 products of 125 x 125, not 64).
+APD_BLOCK = 128
+
+
+def _apd_window(x: Float[Array, "k f"]) -> Float[Array, ""]:
+    # ||a - b||^2 = |a|^2 + |b|^2 - 2 a.b: a K x K matrix product. Distances do not change under
+    # translation, so the samples are first taken relative to sample 0: the norms are then of the
+    # order of the distances (little cancellation), and samples equal to sample 0 are exactly
+    # zero. The norms come from the product's own diagonal, so that two identical samples give
+    # |a|^2 + |a|^2 - 2 |a|^2 = 0 rather than a rounding residue.
+    k = x.shape[0]
+    x = x - x[:1]
+    nb = -(-k // APD_BLOCK)
+    size = -(-k // nb)
+    xb = jnp.pad(x, ((0, nb * size - k), (0, 0))).reshape(nb, size, -1)
+    valid = (jnp.arange(nb * size) < k).reshape(nb, size)
+    diag = [_gram(xb[i], xb[i]) for i in range(nb)]
+    sq = [jnp.diagonal(g) for g in diag]
+    total = jnp.float32(0)
+    for i in range(nb):
+        for j in range(i, nb):
+            g = diag[i] if i == j else _gram(xb[i], xb[j])
+            d = _safe_sqrt(jnp.maximum(sq[i][:, None] + sq[j][None, :] - 2.0 * g, 0.0))
+            keep = valid[i][:, None] & valid[j][None, :]
+            if i == j:
+                keep &= ~jnp.eye(size, dtype=bool)
+            # A block above the diagonal stands for its transpose too: each unordered pair counts twice,
+            # like the pairs inside a diagonal block, so the mean over i != j is the mean over i < j.
+            total += (1.0 if i == j else 2.0) * jnp.sum(jnp.where(keep, d, 0.0))
+    return total / (k * (k - 1))
+
+
 @jax.jit
 def _apd(pred: Float[Array, "n k t d"]) -> Float[Array, " n"]:
     n, k = pred.shape[:2]
     if k == 1:
         return jnp.zeros((n,), jnp.float32)
-    x = pred.reshape(n, k, -1)
-    upper = jnp.arange(k)
-
-    # One row of the K x K distance matrix at a time keeps memory at O(N K t_pred D) and uses
-    # exact differences (a Gram-matrix shortcut loses precision for near-identical samples).
-    def row_sum(i):
-        d = jnp.sqrt(jnp.sum((x - x[:, i][:, None]) ** 2, axis=-1))
-        return jnp.sum(jnp.where(upper > i, d, 0.0), axis=-1)
-
-    total = jnp.sum(lax.map(row_sum, jnp.arange(k)), axis=0)
-    return total / (k * (k - 1) / 2)
+    # One window at a time: a plain matrix product on cache-sized operands runs several times
+    # faster on CPU than XLA's batched product over windows.
+    return lax.map(_apd_window, pred.reshape(n, k, -1))
 
 
 @_checked
@@ -232,29 +268,56 @@ def multimodal_gt(
     return MMSets(jnp.asarray(idx), jnp.asarray(mask))
 
 
+# Elements of the (t_pred, K, members) distance block `_mm_window` holds at once (1 MB: cache-sized).
+MM_BLOCK_ELEMS = 256_000
+
+
+def _mm_window(
+    pred: Float[Array, "k t d"], idx: Int[Array, " m"], mask: Bool[Array, " m"], futures: Float[Array, "r t d"]
+) -> tuple[Float[Array, ""], Float[Array, ""]]:
+    # Per frame, ||p - f||^2 = |p|^2 + |f|^2 - 2 p.f: a block of set members costs one batched
+    # matrix product (t_pred products of K x D by D x members) instead of K * members explicit
+    # differences. Both sides are first taken relative to the window's first member (distances
+    # do not change), so their norms are of the order of the distances and that member's own
+    # terms are exact. The loop over member blocks stops at the window's last valid member, so
+    # cost follows its own set size rather than the global M.
+    k, t, _ = pred.shape
+    m = idx.shape[0]
+    block = min(m, max(8, MM_BLOCK_ELEMS // (k * t)))
+    pad = -m % block
+    idx, mask = jnp.pad(idx, (0, pad)), jnp.pad(mask, (0, pad))
+    centre = futures[idx[0]]  # (t, d)
+    p = jnp.swapaxes(pred - centre, 0, 1)  # (t, K, d)
+    pp = jnp.sum(p * p, axis=-1)[:, :, None]  # (t, K, 1)
+    p = -2.0 * p  # exact (a power of two): the product below is then -2 p.f
+    last = jnp.max(jnp.where(mask, jnp.arange(1, m + pad + 1), 0))
+
+    def body(j, carry):
+        s_ade, s_fde = carry
+        ib = lax.dynamic_slice_in_dim(idx, j * block, block)
+        mb = lax.dynamic_slice_in_dim(mask, j * block, block)
+        f = jnp.swapaxes(futures[ib] - centre, 0, 1)  # (t, block, d)
+        ff = jnp.sum(f * f, axis=-1)[:, None, :]  # (t, 1, block)
+        # A plain sqrt: the loop's data-dependent length rules out reverse-mode gradients anyway.
+        d = jnp.sqrt(jnp.maximum(pp + ff + _gram(p, f), 0.0))  # (t, K, block)
+        s_ade += jnp.sum(jnp.where(mb, jnp.min(jnp.sum(d, axis=0), axis=0), 0.0)) / t
+        s_fde += jnp.sum(jnp.where(mb, jnp.min(d[-1], axis=0), 0.0))
+        return s_ade, s_fde
+
+    s_ade, s_fde = lax.fori_loop(0, (last + block - 1) // block, body, (jnp.float32(0), jnp.float32(0)))
+    count = jnp.sum(mask)
+    # 0 / 0 = NaN for an empty set on purpose: the aggregation decides what an empty set means.
+    return s_ade / count, s_fde / count
+
+
 def _mm_batch(
     pred: Float[Array, "b k t d"],
     idx: Int[Array, "b m"],
     mask: Bool[Array, "b m"],
     futures: Float[Array, "r t d"],
 ) -> tuple[Float[Array, " b"], Float[Array, " b"]]:
-    # One set member per step for the whole batch: memory stays at one (b, K, t_pred, D)
-    # difference whatever M is, and the loop stops at the batch's last valid member, so cost
-    # follows the actual set sizes rather than the global M.
-    n_iter = jnp.max(jnp.where(mask, jnp.arange(1, mask.shape[1] + 1), 0))
-
-    def body(m, carry):
-        s_ade, s_fde = carry
-        d = jnp.sqrt(jnp.sum((pred - futures[idx[:, m]][:, None]) ** 2, axis=-1))
-        s_ade += jnp.where(mask[:, m], jnp.min(jnp.mean(d, axis=-1), axis=-1), 0.0)
-        s_fde += jnp.where(mask[:, m], jnp.min(d[..., -1], axis=-1), 0.0)
-        return s_ade, s_fde
-
-    zeros = jnp.zeros(pred.shape[0], jnp.float32)
-    s_ade, s_fde = lax.fori_loop(0, n_iter, body, (zeros, zeros))
-    count = jnp.sum(mask, axis=1)
-    # 0 / 0 = NaN for an empty set on purpose: the aggregation decides what an empty set means.
-    return s_ade / count, s_fde / count
+    # One window at a time (cache-sized operands, each its own number of member blocks).
+    return lax.map(lambda a: _mm_window(*a, futures), (pred, idx, mask))
 
 
 @partial(jax.jit, static_argnames="batch_size")
@@ -285,7 +348,8 @@ def mm_errors(
 
     `idx`/`mask` come from `multimodal_gt`; `futures` are the futures it indexes (the test
     ground truth, or the reference futures). Windows with an empty set give NaN. Windows are
-    processed `batch_size` at a time so memory is `O(batch_size * K * t_pred * D)` whatever M is.
+    processed `batch_size` at a time and their set members in blocks, each block's distances one
+    batched matrix product, so memory is bounded (`MM_BLOCK_ELEMS`) whatever M is.
     """
     pred, futures, idx, mask = _check_mm("mm_errors", pred, futures, idx, mask)
     return _mm_errors(pred, futures, idx, mask, batch_size)
@@ -368,7 +432,10 @@ def _chunk_metrics(pred, gt, futures, idx, mask):
 
 
 def _pred_chunks(pred, chunk_size: int) -> Iterator[np.ndarray | jax.Array]:
+    # Chunks are at most as long as the first one (and `chunk_size`), so that pieces arriving in
+    # a fixed size (a sampler's batches) pass through unsplit and only the last one is padded.
     pieces = [pred] if hasattr(pred, "shape") else pred
+    size = None
     for piece in pieces:
         if not hasattr(piece, "shape"):
             piece = np.asarray(piece)
@@ -376,8 +443,10 @@ def _pred_chunks(pred, chunk_size: int) -> Iterator[np.ndarray | jax.Array]:
             raise ValueError(
                 f"evaluate_windows: `pred` (or a chunk of it) must be (n, K, t_pred, D), got {tuple(piece.shape)}"
             )
-        for s in range(0, piece.shape[0], chunk_size):
-            yield piece[s : s + chunk_size]
+        if size is None and piece.shape[0]:
+            size = min(chunk_size, piece.shape[0])
+        for s in range(0, piece.shape[0], size or 1):
+            yield piece[s : s + size]
 
 
 @_checked
@@ -394,8 +463,10 @@ def window_metrics(
 
     `pred` is either the whole `(N, K, t_pred, D)` array or an iterable of `(n_c, K, t_pred, D)`
     chunks whose concatenation along axis 0 is that array (e.g. a generator that samples the model
-    chunk by chunk), so the full prediction tensor never needs to exist. Chunks are padded to
-    `chunk_size` windows so the jitted kernel compiles once.
+    chunk by chunk), so the full prediction tensor never needs to exist. Windows are evaluated in
+    chunks of the first chunk's size (at most `chunk_size`), the last one padded, so the jitted
+    kernel compiles once per (K, chunk size) and no time goes to padding when the pieces come in
+    a fixed size.
     """
     fn = "window_metrics"
     _check_finite(fn, "gt", gt)
@@ -406,9 +477,10 @@ def window_metrics(
     idx, mask = np.asarray(idx, np.int32), np.asarray(mask, bool)
     n = gt.shape[0]
     out = {k: np.empty((n,), np.float32) for k in METRIC_NAMES}
-    start, k_seen = 0, None
+    start, k_seen, size = 0, None, None
     for chunk in _pred_chunks(pred, chunk_size):
         c = chunk.shape[0]
+        size = size or c
         if start + c > n:
             raise ValueError(f"{fn}: `pred` has more windows than `gt` ({n})")
         if k_seen is None:
@@ -419,7 +491,7 @@ def window_metrics(
         if not np.all(np.isfinite(np.asarray(chunk))):
             raise ValueError(f"{fn}: `pred` contains NaN or inf in windows [{start}, {start + c})")
         sl = slice(start, start + c)
-        pad = chunk_size - c
+        pad = size - c
         args = [np.asarray(chunk, np.float32), gt[sl], idx[sl], mask[sl]]
         if pad:
             args = [np.concatenate([a, np.zeros((pad,) + a.shape[1:], a.dtype)]) for a in args]

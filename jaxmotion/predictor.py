@@ -131,39 +131,13 @@ def _value(hint, v):
     return v
 
 
-def restore_stage_params(stage_dir: Path):
-    """Returns a stage's parameters from its latest orbax checkpoint, restored without a target and checked against `stage.json`."""
-    import orbax.checkpoint as ocp
-
-    from jaxmotion.train.runner import MANIFEST as STAGE_MANIFEST
-    from jaxmotion.train.runner import param_shapes
-
-    ckpt = (stage_dir / "ckpt").absolute()
-    mngr = ocp.CheckpointManager(ckpt)
-    try:
-        step = mngr.latest_step()
-        if step is None:
-            raise CheckpointError(f"{ckpt}: no checkpoint; train this run first (jaxmotion train)")
-        restored = mngr.restore(step, args=ocp.args.StandardRestore())
-    except CheckpointError:
-        raise
-    except Exception as e:
-        raise CheckpointError(f"{ckpt}: checkpoint does not restore ({type(e).__name__}: {str(e)[:200]})") from e
-    finally:
-        mngr.close()
-    params = jax.tree.map(jnp.asarray, restored["params"])
-    want = json.loads((stage_dir / STAGE_MANIFEST).read_text()).get("params")
-    if want is not None and param_shapes(params) != want:
-        raise CheckpointError(f"{stage_dir}: the checkpoint's parameters do not match the shapes its stage.json lists")
-    return params
-
-
 class MotionPredictor:
     """A trained run: `predict(x, k, key)` draws K futures of frames in the model's layout (`layout`)."""
 
     def __init__(self, run_dir: str | Path):
         from jaxmotion.methods import get_method
         from jaxmotion.train.runner import MANIFEST as STAGE_MANIFEST
+        from jaxmotion.train.runner import restore_untargeted
 
         self.run_dir = Path(run_dir)
         path = self.run_dir / MANIFEST
@@ -190,7 +164,7 @@ class MotionPredictor:
         for d in sorted(self.run_dir.iterdir()):
             m = d / STAGE_MANIFEST
             if m.is_file() and json.loads(m.read_text()).get("method") == self.method.name and (d / "ckpt").is_dir():
-                self.params[d.name] = restore_stage_params(d)
+                self.params[d.name] = restore_untargeted(d)
         if not self.params:
             raise CheckpointError(f"{self.run_dir}: no trained stage of method {self.method.name!r}")
         self._fns: dict[int, dict] = {}

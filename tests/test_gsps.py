@@ -260,30 +260,57 @@ def test_method_is_registered_with_its_stages_in_order():
     assert st[2].frozen == ("prior", "angle_bounds") and st[2].batch_norm and st[1].num_steps == 0
 
 
-@pytest.mark.slow
-def test_tiny_run_trains_samples_any_k_and_fixes_the_lower_body(tmp_path):
+TINY_CONFIG = """
+from jaxmotion.config import Config
+from jaxmotion.models.gsps import GSPSConfig
 
-    from jaxmotion import experiment
-    from jaxmotion.config import Config
+
+def get_config():
+    return Config(name="tiny", method="gsps", eval_k=(3,), max_test_windows=4, ckpt_every=2, log_every=1,
+                  method_config=GSPSConfig(prior_batch_size=32, prior_num_steps=2, hidden=8, num_stage=1, nz=4, n_pre=5,
+                                           nk1=2, nk2=2, batch_size=2, num_steps=2, mm_candidate_stride=60))
+"""
+
+
+@pytest.mark.slow  # trains a tiny run through the command line (~45 s of CPU, most of it compiling the training steps)
+def test_tiny_run_trains_samples_any_k_and_fixes_a_body_part_from_the_command_line(tmp_path, capsys):
+    from jaxmotion import cli, experiment
+    from jaxmotion.config import load_config
     from jaxmotion.methods import gsps as method
 
-    ds = make_synthetic(0, train_sequences=1, train_segments=4, test_sequences=1, test_segments=3)
-    c = gsps.GSPSConfig(prior_batch_size=64, prior_num_steps=3, hidden=8, num_stage=1, nz=4, n_pre=5, nk1=2, nk2=2,
-                        batch_size=2, num_steps=3, mm_candidate_stride=15)
-    cfg = Config(name="t", method="gsps", method_config=c, eval_k=(3,), ckpt_every=2, log_every=1)
-    prep = experiment.prepare(ds)
-    params = experiment.train(cfg, prep, tmp_path)
+    path, wd = tmp_path / "tiny.py", tmp_path / "run"
+    path.write_text(TINY_CONFIG)
+    assert cli.main(["train", "--config", str(path), "--workdir", str(wd)]) == 0
+    cfg = experiment.resolve(load_config(path))
+    prep = experiment.prepare(make_synthetic(0), cfg.max_test_windows)
+    ds, params = prep.dataset, experiment.restore(cfg, prep, wd)
     assert set(params) == {"prior", "angle_bounds", "generator"}
     x = jnp.asarray(prep.x[:2])
     for k in (1, 7):
         out = experiment.predictors(cfg, ds, params, k)["gsps"](x, jax.random.key(0))
         assert out.shape == (2, k, 60, 48) and bool(jnp.all(jnp.isfinite(out)))
-    y = method.sample_part_control(cfg, ds, params, x, jax.random.key(1), 10, fix=("lower",))
-    lower, upper = gsps.part_coords(gsps.body_parts(SKELETON.names, PARENTS, "lower_upper"))
-    assert float(jnp.max(jnp.std(y[..., lower], axis=1))) < 1e-6 < float(jnp.max(jnp.std(y[..., upper], axis=1)))
+    c = cfg.method_config
+    np.testing.assert_allclose(params["angle_bounds"]["bounds"], gsps.measure_angle_bounds(
+        method.bounds_frames(prep.sampler.frames, c.angle_bounds_frames), ROLES, c.angle_percentile, c.angle_margin), atol=1e-6)
+    # Evaluation's hooks: metrics under the run's own bounds and prior, and the bounds for metrics.json.
+    extra, fields = method.METHOD.evaluation_hooks(cfg, ds, params)
+    m = extra(ds, np.asarray(out), prep.y[:2])
+    assert {"angle_violation", "prior_nll", "prior_nll_z", "BDF"} <= set(m) and all(v.shape == (2,) for v in m.values())
+    assert fields["angle_bounds"]["bounds"]["Leg2HipPlane_l"] == [
+        round(float(b), 4) for b in params["angle_bounds"]["bounds"][gsps.ANGLE_NAMES.index("Leg2HipPlane_l")]]
+
+    lower, upper = gsps.part_coords(PARTS)
+    spread = lambda p, c: float(np.max(np.std(p[..., c], axis=-3)))  # noqa: E731  over the K samples
+    # `jaxmotion sample --fix-part` (`sample_part_control`): the .npz, the picture and which joints were held.
+    argv = ["sample", "--config", str(path), "--workdir", str(wd), "--k", "5"]
+    assert cli.main(argv + ["--window", "1", "--fix-part", "lower"]) == 0
+    assert "6 of 16 joints identical across the 5 samples: RHip, RKnee, RFoot, LHip, LKnee, LFoot" in capsys.readouterr().out
+    p = np.load(wd / "sample_w1_gsps_k5_fix-lower.npz")["preds"]
+    assert p.shape == (5, 60, 48) and (wd / "sample_w1_gsps_k5_fix-lower.png").is_file()
+    assert spread(p, lower) < 1e-6 < 1e-4 < spread(p, upper)
+    y = method.sample_part_control(cfg, ds, params, x, jax.random.key(1), 5, fix=("upper",))
+    assert spread(y, lower) > 1e-4  # the legs vary (and the upper body follows them)
     with pytest.raises(ValueError, match="unknown part"):
-        method.sample_part_control(cfg, ds, params, x, jax.random.key(1), 10, fix=("legs",))
-    restored = experiment.restore(cfg, prep, tmp_path)
-    np.testing.assert_array_equal(restored["angle_bounds"]["bounds"], params["angle_bounds"]["bounds"])
-    extra = method.extra_metrics(ds, np.asarray(out), prep.y[:2])
-    assert extra["angle_violation"].shape == (2,)
+        method.sample_part_control(cfg, ds, params, x, jax.random.key(1), 5, fix=("legs",))
+    with pytest.raises(SystemExit, match="method 'dlow' has no body-part control .*gsps"):
+        cli.main(["sample", "--fix-part", "lower"])  # the default config (DLow), refused before any data is read

@@ -125,3 +125,32 @@ def test_reference_futures_from_training_windows():
     for i in range(len(prep.windows)):
         members = futures[idx[i][mask[i]]]
         assert len(members) > 0 and np.abs(members - prep.y[i]).max(axis=(1, 2)).min() == 0.0  # its own future is among them
+
+
+def test_a_computed_stage_is_restored_not_computed_again(tmp_path):
+    import jax.numpy as jnp
+
+    from jaxmotion.train import runner
+
+    calls = []
+
+    def computed(key, frozen):  # stands for an expensive computation (MotionMap's t-SNE codebook)
+        calls.append(1)
+        return {"s": frozen["fit"]["w"].sum() + 1.0}
+
+    def stages(cfg, prep):
+        fit = Stage(name="fit", init=lambda key, _f: {"w": jnp.zeros(3)}, optimizer=optax.sgd(0.1),
+                    loss=lambda p, _f, b, key: (jnp.sum((p["w"] - b) ** 2), {}),
+                    batches=lambda rng: np.ones((2, 3), np.float32), num_steps=2)
+        return [fit, Stage(name="stats", init=computed, optimizer=optax.set_to_zero(), loss=None, batches=None,
+                           num_steps=0, frozen=("fit",))]
+
+    method = Method(name="computed_toy", config_type=dict, stages=stages, predictors=lambda *a: {})
+    cfg = Config(ckpt_every=1, log_every=1)
+    first = runner.train(method, cfg, None, tmp_path)
+    assert len(calls) == 1
+    again = runner.train(method, cfg, None, tmp_path, resume=True)
+    restored = runner.restore(method, cfg, None, tmp_path)
+    assert len(calls) == 1  # neither the resumed run nor the restore computed it again
+    for params in (again, restored):
+        np.testing.assert_allclose(np.asarray(params["stats"]["s"]), np.asarray(first["stats"]["s"]))

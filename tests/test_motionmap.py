@@ -196,6 +196,9 @@ def test_every_stage_trains_resumes_and_predicts_on_small_synthetic_data(tmp_pat
     assert set(trained) == {"autoencoder", "codebook", "heatmap", "finetune"}
     restored = runner.restore(method, cfg, prep, tmp_path)
     np.testing.assert_array_equal(np.asarray(restored["codebook"]["table"]), np.asarray(trained["codebook"]["table"]))
+    # The cells' action labels survive the checkpoint (synthetic: the modes the training futures follow).
+    assert mmm.labels(restored) == mmm.labels(trained) and set(mmm.labels(trained)) <= set(ds.info["mode_names"])
+    np.testing.assert_array_equal(np.asarray(restored["codebook"]["label_counts"]), np.asarray(trained["codebook"]["label_counts"]))
     # The encoders are not fine-tuned.
     enc = lambda p: np.asarray(p["params"]["enc_x"]["cell"]["weight_hh"])
     np.testing.assert_array_equal(enc(trained["finetune"]), enc(trained["autoencoder"]))

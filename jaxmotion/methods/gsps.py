@@ -5,7 +5,11 @@ Settings: `Config.method_config`, a `jaxmotion.models.gsps.GSPSConfig`. Stages, 
 `train_nf.py`); `angle_bounds` (computed, not trained: the cosine bounds measured on the
 training poses, checkpointed so the generator and evaluation use the same numbers); `generator`
 (release `train.py`, the prior and the bounds frozen). Predictors: `zero_velocity` and `gsps`
-(any K, i.i.d. noise per part). `sample_part_control` fixes some parts' noise and varies the rest.
+(any K, i.i.d. noise per part). `sample_part_control` fixes some parts' noise and varies the rest
+(`jaxmotion sample --fix-part`). Evaluation adds, per window, the fraction of predicted frames
+outside the run's own angle bounds, the pose-prior NLL under its own prior and the bone
+deformation (`trained_metrics`, `jaxmotion.validity`), and writes the bounds into every record's
+config (`record_fields`).
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from jaxmotion import validity
 from jaxmotion.method import Method, Stage
 from jaxmotion.methods.common import zero_velocity
 from jaxmotion.models import gsps
@@ -117,15 +122,23 @@ def sample_part_control(cfg, ds, params: dict, x, key: jax.Array, k: int, fix: t
 
     Part names: `gsps.PART_NAMES[parts]` ("lower", "upper"; or "torso", "right_leg", ...). Fixing
     "lower" gives K upper-body motions over one lower-body motion: the lower body is predicted
-    first and later parts never overwrite it, so it is identical across the K samples.
+    first and later parts never overwrite it, so it is identical across the K samples (the
+    release's `eval.py --fixlower`). A later part ("upper") shares its noise only: its GCN reads
+    the earlier parts' motion, which varies, so its own motion still varies with them.
     """
     c = settings(cfg)
     names = gsps.PART_NAMES[c.parts]
     bad = [f for f in fix if f not in names]
     if bad:
         raise ValueError(f"sample_part_control: unknown part(s) {bad}; GSPSConfig.parts={c.parts!r} has {names}")
-    z = gsps.part_control_noise(key, x.shape[0], k, len(names), c.nz, tuple(names.index(f) for f in fix))
-    return sample_gsps(c, ds, params["generator"], jnp.asarray(x), key, k, noise=z)
+    fixed = tuple(names.index(f) for f in fix)
+
+    @jax.jit
+    def sample(x, key):
+        z = gsps.part_control_noise(key, x.shape[0], k, len(names), c.nz, fixed)
+        return sample_gsps(c, ds, params["generator"], x, key, k, noise=z)
+
+    return sample(jnp.asarray(x), key)
 
 
 def predictors(cfg, ds, params: dict, k: int) -> dict:
@@ -138,21 +151,22 @@ def predictors(cfg, ds, params: dict, k: int) -> dict:
     }
 
 
-def extra_metrics(ds, pred: np.ndarray, gt: np.ndarray) -> dict[str, np.ndarray]:
-    """Returns the per-window fraction of predicted frames that violate an angle limit (default `GSPSConfig` bounds).
+def trained_metrics(cfg, ds, params: dict):
+    """Returns GSPS's extra metrics for a trained run: per window `angle_violation` under the run's own
+    `angle_bounds` stage, `prior_nll` / `prior_nll_z` under its `prior` stage, and `BDF` (`jaxmotion.validity`)."""
+    v = validity.from_gsps_run(cfg, ds, params)
+    return lambda _ds, pred, _gt: validity.window_validity(v, pred)
 
-    The bounds are measured again from the dataset's training poses with `GSPSConfig()`'s
-    percentile and margin (`Method.extra_metrics` sees neither the config nor the trained stages).
-    """
-    c = GSPSConfig()
-    parents, roles, _ = _skeleton(ds, c)
-    from jaxmotion.data.windows import sequence_frames
 
-    bounds = gsps.measure_angle_bounds(
-        bounds_frames(sequence_frames(ds.train), c.angle_bounds_frames), roles, c.angle_percentile, c.angle_margin
-    )
-    frac = gsps.violation_fraction(jnp.asarray(pred), roles, jnp.asarray(bounds))  # (n, K)
-    return {"angle_violation": np.asarray(jnp.mean(frac, axis=-1))}
+def record_fields(cfg, ds, params: dict) -> dict:
+    """Returns `{"angle_bounds": ...}` for metrics.json's config record: the bounds the evaluation used and how they were measured."""
+    c = settings(cfg)
+    return {"angle_bounds": {
+        "measured": f"percentiles {c.angle_percentile} / {100 - c.angle_percentile} of the cosines over up to "
+                    f"{c.angle_bounds_frames} evenly spaced training frames, widened by {c.angle_margin}",
+        "applies": "lo where lo >= -0.98, hi where hi <= 0.98",
+        "bounds": validity.bounds_record(params["angle_bounds"]["bounds"]),
+    }}
 
 
 METHOD = Method(
@@ -160,6 +174,8 @@ METHOD = Method(
     config_type=GSPSConfig,
     stages=stages,
     predictors=predictors,
-    extra_metrics=extra_metrics,
+    trained_metrics=trained_metrics,
+    record_fields=record_fields,
+    part_control=sample_part_control,
     description="GSPS (Mao et al., ICCV 2021): flow pose prior, angle limits, body parts generated in sequence by GCNs",
 )

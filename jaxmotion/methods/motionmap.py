@@ -16,6 +16,11 @@ confidence; with fewer peaks than K the peaks are repeated in confidence order, 
 hold every mode once before any repeats). `modes_fn` gives the variable number of modes with their
 confidences and per-joint uncertainties. Evaluation's multimodal ground truth comes from the
 training windows (`reference_futures="train"`, MotionMap Tables 1-2).
+
+Controllability: the codebook's cells carry the action labels of the training futures in them
+(`label_counts`, `future_labels`); `label_modes_fn` keeps the modes of one action, `near_mode_fn`
+samples futures from the cells around a chosen mode. Pictures (`draw_pictures`, drawn by
+`jaxmotion run` through `Method.pictures`): the predicted and true maps, the ranked modes.
 """
 
 from __future__ import annotations
@@ -54,7 +59,7 @@ class Pool:
         self.parents = tuple(ds.skeleton.parents)
         mm.frame_parents(self.parents)  # a skeleton motion transfer cannot handle is an error now
         stride = c.pool_stride or ds.t_his
-        self.windows, _, _ = test_windows(prep.train_frames, ds.t_his, ds.t_pred, step=stride)
+        self.windows, self.seq_index, self.starts = test_windows(prep.train_frames, ds.t_his, ds.t_pred, step=stride)
         self.thr = float(c.mm_threshold if c.mm_threshold is not None else ds.mm_threshold)
         self._sets = None
         self._transfer = jax.jit(lambda src, tgt: mm.motion_transfer(src, tgt[:, None], self.parents))
@@ -66,6 +71,11 @@ class Pool:
     @property
     def y(self) -> np.ndarray:
         return self.windows[:, self.ds.t_his :]
+
+    @property
+    def labels(self) -> np.ndarray:
+        """Returns the action label (a string) of every pool window's future (`future_labels`)."""
+        return future_labels(self.ds, self.seq_index, self.starts)
 
     @property
     def sets(self) -> tuple[np.ndarray, np.ndarray]:
@@ -98,13 +108,41 @@ class Pool:
         return out, ok
 
 
+def future_labels(ds, seq_index: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Returns the action label of the future of each training window `(ds.train[seq_index], starts)`.
+
+    A sequence's `action` (Bandai-Namco-2: its content label, `walk`, `wave-left-hand`, ...), except
+    where the dataset labels its segments (the synthetic data, whose sequences are all "mixed":
+    `info["train_segments"]`): the action of the future's last frame, i.e. the mode it follows.
+    """
+    info = ds.info
+    if "train_segments" in info and "mode_names" in info:
+        last = starts + ds.t_total - 1
+        seg = [info["train_segments"][q][f // info["segment_len"]] for q, f in zip(seq_index, last)]
+        return np.asarray([info["mode_names"][a] for a in seg])
+    return np.asarray([ds.train[q].action for q in seq_index])
+
+
+def _encode_names(names) -> np.ndarray:
+    """Returns label names as a `(l, n)` uint8 array of UTF-8 bytes, zero-padded (a checkpoint holds arrays, not strings)."""
+    raw = [n.encode() for n in names]
+    out = np.zeros((len(raw), max([1, *map(len, raw)])), np.uint8)
+    for i, r in enumerate(raw):
+        out[i, : len(r)] = np.frombuffer(r, np.uint8)
+    return out
+
+
+def _decode_names(arr) -> list[str]:
+    return [bytes(row[row > 0]).decode() for row in np.asarray(arr, np.uint8)]
+
+
 def _adam(c: MotionMapConfig, steps: int):
     # The release uses Adam (amsgrad) with ReduceLROnPlateau; here a cosine decay over the stage's fixed budget.
     return optax.amsgrad(optax.cosine_decay_schedule(c.lr, max(steps, 1), alpha=0.05))
 
 
 def _codebook(ae: mm.MotionMapAE, ae_params, pool: Pool, c: MotionMapConfig, seed: int) -> dict:
-    """Returns the codebook stage's parameters: map table, pool cells and codes, template skeleton."""
+    """Returns the codebook stage's parameters: map table, pool cells and codes, template skeleton, label counts per cell."""
     enc = jax.jit(lambda y: ae.apply(ae_params, y, method=mm.MotionMapAE.encode_y))
     y = pool.y
     codes = np.concatenate([np.asarray(enc(jnp.asarray(y[s : s + 512]))) for s in range(0, len(y), 512)])
@@ -118,7 +156,16 @@ def _codebook(ae: mm.MotionMapAE, ae_params, pool: Pool, c: MotionMapConfig, see
     print(f"motionmap codebook: {len(codes)} training futures in {int(filled.sum())} of {c.hm_size**2} cells", flush=True)
     return {
         "table": jnp.asarray(table), "cells": jnp.asarray(cells, jnp.int32), "codes": jnp.asarray(codes),
-        "template": jnp.asarray(pool.x[0, -1]), "points": jnp.asarray(pts),
+        "template": jnp.asarray(pool.x[0, -1]), "points": jnp.asarray(pts), **_label_fields(cells, pool.labels, c.hm_size),
+    }
+
+
+def _label_fields(cells: np.ndarray, labels: np.ndarray, size: int) -> dict:
+    """Returns the codebook's `label_counts (size, size, l)` and `label_names` (encoded) for the pool's future labels."""
+    names, idx = np.unique(labels, return_inverse=True)
+    return {
+        "label_counts": jnp.asarray(mm.cell_label_counts(cells, idx, len(names), size)),
+        "label_names": jnp.asarray(_encode_names(names)),
     }
 
 
@@ -189,15 +236,80 @@ def stages(cfg, prep) -> list[Stage]:
 
 def modes_fn(cfg, ds, params: dict):
     """Returns a jitted `x (b, t_his, D) -> mm.Modes`: every window's modes, confidences and per-joint uncertainties."""
-    c = settings(cfg)
-    ae, hm = mm.ae_model(c, ds.dim, ds.t_his, ds.t_pred), mm.heatmap_model(c)
-    ae_params = params.get("finetune", params["autoencoder"])
+    c, ae, ae_params = _decoder(cfg, ds, params)
+    hm = mm.heatmap_model(c)
     parents = tuple(ds.skeleton.parents)
     return jax.jit(
         lambda x: mm.predict_modes(
             ae, ae_params, hm, params["heatmap"], params["codebook"], x, parents, min_distance=c.peak_min_distance,
             threshold_rel=c.peak_threshold_rel, max_peaks=c.max_peaks, scale=c.loss_scale,
         )
+    )
+
+
+def _decoder(cfg, ds, params: dict):
+    """Returns `(settings, autoencoder, its parameters)`: the fine-tuned decoder where that stage is trained."""
+    c = settings(cfg)
+    return c, mm.ae_model(c, ds.dim, ds.t_his, ds.t_pred), params.get("finetune", params["autoencoder"])
+
+
+def labels(params: dict) -> list[str]:
+    """Returns the action labels the codebook's cells carry, in label-index order (the last axis of `label_counts`)."""
+    cb = params["codebook"]
+    if "label_counts" not in cb:
+        raise ValueError(
+            "this run's MotionMap codebook has no action labels per cell (computed before they were recorded): "
+            "retrain the codebook stage, and the heatmap and finetune stages trained on its map (delete the work "
+            "directory's codebook/, heatmap/ and finetune/ folders, then `jaxmotion train --resume` keeps the "
+            "autoencoder), or add the labels to the loaded parameters without a new map: "
+            "params = jaxmotion.methods.motionmap.with_labels(cfg, prep, params)"
+        )
+    return _decode_names(cb["label_names"])
+
+
+def with_labels(cfg, prep, params: dict) -> dict:
+    """Returns `params` whose codebook carries the label counts per cell, computed from its stored cells (no new t-SNE).
+
+    For a codebook computed before label counts were recorded; `prep` must hold the training data it
+    was computed from (the same training windows, `MotionMapConfig.pool_stride`).
+    """
+    pool = Pool(prep, settings(cfg))
+    cells = np.asarray(params["codebook"]["cells"])
+    if len(cells) != len(pool.windows):
+        raise ValueError(
+            f"with_labels: the codebook holds {len(cells)} training futures but this data gives {len(pool.windows)} "
+            "training windows: not the data (or pool_stride) it was computed from"
+        )
+    size = params["codebook"]["table"].shape[0]
+    return {**params, "codebook": {**params["codebook"], **_label_fields(cells, pool.labels, size)}}
+
+
+def label_modes_fn(cfg, ds, params: dict, action: str):
+    """Returns a jitted `x (b, t_his, D) -> mm.Modes`: the modes whose cell's majority label is `action`, by confidence.
+
+    The modes are `modes_fn`'s, restricted with `mm.select_label`: the others become padding, and a
+    window whose map has no peak of that action has no valid mode (`modes.valid[b].any()` False).
+    Raises a ValueError naming the codebook's labels when `action` is not one of them.
+    """
+    names = labels(params)
+    if action not in names:
+        raise ValueError(f"label_modes_fn: {action!r} is not a label of this codebook; its cells carry {names}")
+    modes, counts, a = modes_fn(cfg, ds, params), params["codebook"]["label_counts"], names.index(action)
+    return jax.jit(lambda x: mm.select_label(modes(x), counts, a))
+
+
+def near_mode_fn(cfg, ds, params: dict, *, k: int, radius: float):
+    """Returns a jitted `(x (b, t_his, D), centre (b, 2) cells, key) -> mm.NearSamples`: K futures near a chosen mode.
+
+    Each future decodes the code of a random cell within `radius` cells of `centre` (a mode's
+    cell, `Modes.cells[:, rank]`), with X (`mm.sample_near_mode`).
+    """
+    if k < 1 or not radius >= 0:
+        raise ValueError(f"near_mode_fn: need k >= 1 and radius >= 0 (cells), got k={k}, radius={radius}")
+    c, ae, ae_params = _decoder(cfg, ds, params)
+    table = params["codebook"]["table"]
+    return jax.jit(
+        lambda x, centre, key: mm.sample_near_mode(ae, ae_params, table, x, centre, key, k=k, radius=radius, scale=c.loss_scale)
     )
 
 
@@ -303,7 +415,10 @@ def draw_pictures(cfg, prep, params: dict, workdir, i: int = 0) -> list:
             axs[0].text(cell[1] + 1, cell[0] - 1, str(r + 1), color="c", fontsize=8)
     axs[0].set_title(f"predicted map, {int(valid.sum())} peaks (numbered by confidence)", fontsize=9)
     axs[1].imshow(gt, cmap="magma")
-    axs[1].set_title(f"ground truth: {len(members)} multimodal training futures", fontsize=9)
+    axs[1].set_title(
+        f"ground truth: {len(members)} multimodal training futures" if len(members) else
+        f"ground truth: empty, no training window within {pool.thr:g} m of this window's last {f} frames", fontsize=9,
+    )
     for a in axs:
         a.axis("off")
     paths = [workdir / "motionmap_maps.png"]
@@ -340,5 +455,6 @@ METHOD = Method(
     stages=stages,
     predictors=predictors,
     reference_futures="train",
+    pictures=draw_pictures,
     description="MotionMap (Hosseininejad, Shukla et al., CVPR 2025): heatmap over futures, modes ranked by confidence",
 )

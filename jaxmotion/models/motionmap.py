@@ -40,7 +40,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import lax
-from jaxtyping import Array, Bool, Float, Int
+from jaxtyping import Array, Bool, Float, Int, Shaped
 
 from jaxmotion.metrics import MMSets
 from jaxmotion.nn.gru import GRU, GRUCell, gru_update
@@ -278,17 +278,41 @@ def build_codebook(
 
     "Nearest" is Euclidean on the grid (the release searches breadth-first over 4-neighbours).
     """
+    sums, counts = _cell_sums(cells, np.asarray(codes, np.float64), size)
+    filled = counts > 0
+    return _from_nearest_filled(sums / np.maximum(counts, 1)[..., None], filled).astype(np.float32), filled
+
+
+def cell_label_counts(
+    cells: Int[np.ndarray, "n 2"], labels: Int[np.ndarray, " n"], num_labels: int, size: int
+) -> Int[np.ndarray, "size size l"]:
+    """Returns how many futures of each label fall in each cell; an empty cell takes its nearest filled cell's counts.
+
+    The cells carry the labels of the futures in them, filled as `build_codebook` fills the table,
+    so a cell decodes the code of the same futures whose labels it carries.
+    """
+    labels = np.asarray(labels)
+    if labels.shape != (len(cells),) or labels.min(initial=0) < 0 or labels.max(initial=0) >= num_labels:
+        raise ValueError(f"cell_label_counts: need one label in [0, {num_labels}) per cell, got shape {labels.shape}")
+    sums, counts = _cell_sums(cells, np.eye(num_labels, dtype=np.int64)[labels], size)
+    return _from_nearest_filled(sums, counts > 0).astype(np.int32)
+
+
+def _cell_sums(cells: Int[np.ndarray, "n 2"], values: Shaped[np.ndarray, "n c"], size: int):
+    """Returns `(sums (size, size, c), counts (size, size))` of the values of the points in each cell."""
+    cells = np.asarray(cells)
+    flat = cells[:, 0] * size + cells[:, 1]
+    sums = np.zeros((size * size, values.shape[1]), values.dtype)
+    np.add.at(sums, flat, values)
+    return sums.reshape(size, size, -1), np.bincount(flat, minlength=size * size).reshape(size, size)
+
+
+def _from_nearest_filled(grid: np.ndarray, filled: Bool[np.ndarray, "size size"]) -> np.ndarray:
+    """Returns `grid` with every empty cell's entry taken from its nearest filled cell (Euclidean on the grid)."""
     from scipy.ndimage import distance_transform_edt
 
-    cells, codes = np.asarray(cells), np.asarray(codes, np.float64)
-    flat = cells[:, 0] * size + cells[:, 1]
-    sums = np.zeros((size * size, codes.shape[1]))
-    np.add.at(sums, flat, codes)
-    counts = np.bincount(flat, minlength=size * size)
-    filled = (counts > 0).reshape(size, size)
-    table = (sums / np.maximum(counts, 1)[:, None]).reshape(size, size, -1)
     _, (ri, ci) = distance_transform_edt(~filled, return_indices=True)
-    return table[ri, ci].astype(np.float32), filled
+    return grid[ri, ci]
 
 
 def gaussian_heatmap(
@@ -335,10 +359,14 @@ def find_peaks(
         return keep.at[:, i].set(valid[:, i] & ~blocked)
 
     keep = lax.fori_loop(0, p, keep_step, jnp.zeros_like(valid))
-    order = jnp.argsort(~keep, axis=-1, stable=True)  # kept peaks first, still in value order
-    take = lambda a: jnp.take_along_axis(a, order if a.ndim == 2 else order[..., None], axis=1)
-    keep_sorted = take(keep)
-    return Peaks(take(cells), jnp.where(keep_sorted, take(vals), 0.0), keep_sorted)
+    keep_sorted, cells, vals = kept_first(keep, keep, cells, vals)
+    return Peaks(cells, jnp.where(keep_sorted, vals, 0.0), keep_sorted)
+
+
+def kept_first(keep: Bool[Array, "b p"], *arrays: Array) -> tuple[Array, ...]:
+    """Returns each `(b, p, ...)` array reordered along axis 1 so the kept entries come first, each group in its old order."""
+    order = jnp.argsort(~keep, axis=-1, stable=True)
+    return tuple(jnp.take_along_axis(a, order.reshape(order.shape + (1,) * (a.ndim - 2)), axis=1) for a in arrays)
 
 
 def top_k_slots(valid: Bool[Array, "b p"], k: int) -> Int[Array, "b k"]:
@@ -518,22 +546,81 @@ def predict_modes(
     parents: tuple[int, ...], *, min_distance: int, threshold_rel: float, max_peaks: int, scale: float,
 ) -> Modes:
     """Returns every window's modes: the peaks of its predicted map, each codebook code decoded with X."""
-    size = codebook["table"].shape[0]
     desc = motion_transfer(x, codebook["template"], parents)
     heat = jax.nn.sigmoid(hm.apply(hm_params, desc))
     peaks = find_peaks(heat, min_distance=min_distance, threshold_rel=threshold_rel, max_peaks=max_peaks)
-    b, p = peaks.valid.shape
-    table = codebook["table"].reshape(size * size, -1)
-    z = table[peaks.cells[..., 0] * size + peaks.cells[..., 1]]  # (b, p, c)
-    xr = jnp.repeat(x, p, axis=0)
-    frames, ls = ae.apply(ae_params, xr, z.reshape(b * p, -1), method=MotionMapAE.decode)
+    futures, sigma = decode_cells(ae, ae_params, codebook["table"], x, peaks.cells, scale=scale)
+    return Modes(futures, peaks.confidence, sigma, peaks.cells, peaks.valid, heat)
+
+
+def decode_cells(
+    ae: MotionMapAE, ae_params, table: Float[Array, "h w c"], x: Float[Array, "b t_his d"], cells: Int[Array, "b p 2"],
+    *, scale: float,
+) -> tuple[Float[Array, "b p t_pred d"], Float[Array, "b p t_pred j"]]:
+    """Returns `(futures, sigma)`: the codebook code of every cell decoded with its window's X, sigma in metres."""
+    b, p = cells.shape[:2]
+    z = table[cells[..., 0], cells[..., 1]]  # (b, p, c)
+    frames, ls = ae.apply(ae_params, jnp.repeat(x, p, axis=0), z.reshape(b * p, -1), method=MotionMapAE.decode)
     t_his = x.shape[1]
     futures = frames[:, t_his:].reshape(b, p, -1, x.shape[-1])
     sigma = (jnp.exp(ls[:, t_his:]) / scale).reshape(b, p, -1, ls.shape[-1])
-    return Modes(futures, peaks.confidence, sigma, peaks.cells, peaks.valid, heat)
+    return futures, sigma
 
 
 def select_k(modes: Modes, k: int) -> Float[Array, "b k t d"]:
     """Returns K futures per window: the top-K modes by confidence, repeated in confidence order when fewer (`top_k_slots`)."""
     slots = top_k_slots(modes.valid, k)
     return jnp.take_along_axis(modes.futures, slots[..., None, None], axis=1)
+
+
+# --------------------------------------------------------------------------------------------
+# Controllability: modes by action label, futures near a chosen mode.
+
+
+def select_label(modes: Modes, label_counts: Int[Array, "h w l"], label: int | Int[Array, ""]) -> Modes:
+    """Returns `modes` restricted to the peaks whose cell's majority label is `label`, first, still ranked by confidence.
+
+    A cell's majority label is the most frequent label of the training futures in it (ties: the
+    lower label index). Peaks of other labels become padding (`valid` False, confidence 0); a window
+    with no peak of that label has no valid mode at all (`valid[b].any()` is False): its map puts
+    no mode of that action near the observed motion. Jittable; `label` may be traced.
+    """
+    majority = jnp.argmax(label_counts, axis=-1)[modes.cells[..., 0], modes.cells[..., 1]]  # (b, p)
+    keep = modes.valid & (majority == label)
+    futures, confidence, sigma, cells, keep = kept_first(keep, modes.futures, modes.confidence, modes.sigma, modes.cells, keep)
+    return Modes(futures, jnp.where(keep, confidence, 0.0), sigma, cells, keep, modes.heatmap)
+
+
+def disc_cells(key: jax.Array, centre: Int[Array, "b 2"], *, k: int, radius: float, size: int) -> Int[Array, "b k 2"]:
+    """Returns K random grid cells per window, uniform over the cells within `radius` of `centre`, clipped into the grid.
+
+    Clipping moves a cell towards the (in-grid) centre, so every cell stays within `radius`; cells
+    at the grid's edge are then the likelier. `radius = 0`: the centre K times.
+    """
+    r = int(np.floor(radius))
+    off = np.stack(np.meshgrid(np.arange(-r, r + 1), np.arange(-r, r + 1), indexing="ij"), -1).reshape(-1, 2)
+    off = jnp.asarray(off[(off**2).sum(-1) <= radius**2], jnp.int32)
+    pick = jax.random.randint(key, (centre.shape[0], k), 0, off.shape[0])
+    return jnp.clip(centre[:, None] + off[pick], 0, size - 1)
+
+
+class NearSamples(NamedTuple):
+    """K futures per window decoded from codebook cells near a chosen mode."""
+
+    futures: Float[Array, "b k t d"]
+    sigma: Float[Array, "b k t j"]
+    cells: Int[Array, "b k 2"]
+
+
+def sample_near_mode(
+    ae: MotionMapAE, ae_params, table: Float[Array, "h w c"], x: Float[Array, "b t_his d"], centre: Int[Array, "b 2"],
+    key: jax.Array, *, k: int, radius: float, scale: float,
+) -> NearSamples:
+    """Returns K futures per window decoded from random codebook cells within `radius` cells of `centre` (`disc_cells`).
+
+    `centre` is a chosen mode's cell (`Modes.cells[:, rank]`): neighbouring cells hold the codes of
+    nearby futures on the map, so the samples are variations of that mode.
+    """
+    cells = disc_cells(key, centre, k=k, radius=radius, size=table.shape[0])
+    futures, sigma = decode_cells(ae, ae_params, table, x, cells, scale=scale)
+    return NearSamples(futures, sigma, cells)

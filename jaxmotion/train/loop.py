@@ -4,9 +4,13 @@ Checkpoints are written with orbax every `ckpt_every` steps and at the end (the 
 `resume=True` continues from the newest one that restores: a truncated or half-written newest
 checkpoint is moved to `ckpt.unreadable/` (nothing is deleted) and training resumes from the one
 before it, with a warning naming both steps. The data stream is a function of `(seed, step)`, so a
-resumed run sees exactly the batches, and logs exactly the lines, an uninterrupted run would have. Batches are placed with a
-`NamedSharding` over a one-axis device mesh named "data", so the same loop data-parallelises over
-several devices; on one device it is a no-op.
+resumed run sees exactly the batches, and logs exactly the lines, an uninterrupted run would have.
+
+The loop data-parallelises over a one-axis device mesh named "data" (`jaxmotion.distributed`): every
+batch is split over the devices of every process, the state is replicated, and on one device this
+is a no-op. With several processes (`jax.distributed`), every process runs `fit` alike: each places
+its own rows of the global batch, all of them write the checkpoints together (orbax's multi-host
+support), and only process 0 writes the log and shows the progress bar.
 """
 
 from __future__ import annotations
@@ -30,6 +34,8 @@ from flax import struct
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from tqdm.auto import tqdm
 
+from jaxmotion import distributed
+from jaxmotion.distributed import data_mesh
 from jaxmotion.errors import CheckpointError
 
 
@@ -109,11 +115,6 @@ def make_bn_train_step(loss_fn, tx: optax.GradientTransformation):
     return train_step
 
 
-def data_mesh() -> Mesh:
-    """Returns a one-axis mesh named "data" over all local devices."""
-    return Mesh(np.array(jax.devices()), ("data",))
-
-
 def fit(
     state: TrainState,
     train_step,
@@ -128,6 +129,7 @@ def fit(
     desc: str = "train",
     evaluate: Callable[[Any], dict | None] | None = None,
     eval_every: int = 0,
+    mesh: Mesh | None = None,
 ) -> TrainState:
     """Returns the trained state after `num_steps` steps, checkpointing into `workdir/ckpt`.
 
@@ -143,6 +145,11 @@ def fit(
     before the first step, every `eval_every` steps and at the end: a log line `{"stage", "step",
     "curve": true, "eval_s", **evaluate(state.params)}` (nothing when it returns None). `time_s`
     of the training lines excludes the time spent in those evaluations.
+
+    Each batch is split over the devices of `mesh` (default `distributed.data_mesh()`: every device of
+    every process), so its size must be a multiple of their number (`ConfigError` otherwise, before
+    the first step). With several processes every one of them calls `fit` with the same arguments and
+    draws the same global batches; `evaluate` runs in all of them, only process 0 logs.
     """
     workdir = Path(workdir).absolute()
     workdir.mkdir(parents=True, exist_ok=True)
@@ -164,7 +171,10 @@ def fit(
             )
         if bad:
             mngr.close()
-            aside = _move_aside(ckpt, [s for s, _ in bad])
+            aside = _unreadable(ckpt)
+            if distributed.is_main():
+                _move_aside(ckpt, [s for s, _ in bad])
+            distributed.barrier(f"move aside {ckpt}")
             warnings.warn(
                 f"{ckpt}: checkpoint step {bad[0][0]} is unreadable ({bad[0][1]}); resuming from step {step}, the newest "
                 f"that restores; moved the unreadable checkpoint(s) to {aside} (nothing deleted)",
@@ -172,12 +182,13 @@ def fit(
             )
             mngr = _manager(ckpt, ckpt_every)
         state = restored
-        _replace_log_after(workdir / "log.jsonl", step)
-    mesh = data_mesh()
+        if distributed.is_main():
+            _replace_log_after(workdir / "log.jsonl", step)
+    mesh = data_mesh() if mesh is None else mesh
     replicated = NamedSharding(mesh, PartitionSpec())
     batch_sharding = NamedSharding(mesh, PartitionSpec("data"))
     # The step donates its state; copy so arrays the caller still holds (a frozen decoder) survive.
-    state = jax.device_put(jax.tree.map(jnp.array, state), replicated)
+    state = distributed.replicate(state, replicated)
     step_fn = jax.jit(train_step, donate_argnums=0)
     key = jax.random.key(seed)
     start = int(state.step)
@@ -200,14 +211,17 @@ def fit(
             log.flush()
 
     curves = evaluate is not None and eval_every > 0
-    with open(workdir / "log.jsonl", "a") as log, tqdm(
-        total=num_steps, initial=start, desc=desc, mininterval=2.0, dynamic_ncols=True
+    main = distributed.is_main()
+    with open(workdir / "log.jsonl" if main else os.devnull, "a") as log, tqdm(
+        total=num_steps, initial=start, desc=desc, mininterval=2.0, dynamic_ncols=True, disable=not main
     ) as bar:
         if curves and start == 0:
             curve_point(log, 0)
         for step in range(start, num_steps):
             batch = sample_batch(np.random.default_rng([seed, step]))
-            batch = jax.device_put(batch, batch_sharding)
+            if step == start:
+                distributed.check_batch(batch, mesh, f"stage {desc!r}")
+            batch = distributed.global_batch(batch, batch_sharding)
             state, metrics = step_fn(state, batch, jax.random.fold_in(key, step))
             done = step + 1
             if done % log_every == 0 or done == num_steps:
@@ -284,9 +298,13 @@ def _restore_newest(ckpt: Path, steps, state: TrainState):
     return None, None, bad
 
 
+def _unreadable(ckpt: Path) -> Path:
+    return ckpt.with_name(ckpt.name + ".unreadable")
+
+
 def _move_aside(ckpt: Path, steps: list[int]) -> Path:
     """Moves the step folders `steps` of `ckpt` into `ckpt.unreadable/` (renamed, never deleted); returns that folder."""
-    aside = ckpt.with_name(ckpt.name + ".unreadable")
+    aside = _unreadable(ckpt)
     aside.mkdir(exist_ok=True)
     for s in steps:
         target, n = aside / str(s), 1

@@ -15,7 +15,9 @@ from pathlib import Path
 from typing import Any
 
 import jax
+import numpy as np
 
+from jaxmotion import distributed
 from jaxmotion.errors import CheckpointError
 from jaxmotion.method import Method, Stage
 from jaxmotion.train.loop import TrainState, create_state, fit, make_bn_train_step, make_train_step, restore_params
@@ -104,6 +106,51 @@ def _train_step(stage: Stage):
 Curve = Callable[[dict[str, Any]], "dict | None"]
 
 
+def restore_untargeted(stage_dir: Path):
+    """Returns a stage's parameters from its latest orbax checkpoint, restored without a target and checked against `stage.json`.
+
+    No `stage.init` is needed for the structure, so nothing is computed: `jaxmotion.load` and the
+    restore of computed stages (`Stage.num_steps == 0`, e.g. MotionMap's t-SNE codebook) use it.
+    """
+    import jax.numpy as jnp
+    import orbax.checkpoint as ocp
+
+    ckpt = (Path(stage_dir) / "ckpt").absolute()
+    mngr = ocp.CheckpointManager(ckpt)
+    try:
+        step = mngr.latest_step()
+        if step is None:
+            raise CheckpointError(f"{ckpt}: no checkpoint; train this run first (jaxmotion train)")
+        restored = mngr.restore(step, args=ocp.args.StandardRestore())
+    except CheckpointError:
+        raise
+    except Exception as e:
+        raise CheckpointError(f"{ckpt}: checkpoint does not restore ({type(e).__name__}: {str(e)[:200]})") from e
+    finally:
+        mngr.close()
+    params = jax.tree.map(jnp.asarray, restored["params"])
+    manifest = Path(stage_dir) / MANIFEST
+    want = json.loads(manifest.read_text()).get("params") if manifest.is_file() else None
+    if want is not None and param_shapes(params) != want:
+        raise CheckpointError(f"{stage_dir}: the checkpoint's parameters do not match the shapes its stage.json lists")
+    return params
+
+
+def _computed_from_checkpoint(method: Method, stage: Stage, stage_dir: Path, upstream: dict[str, int] | None):
+    """Returns a computed stage's checkpointed parameters without computing them again, or None.
+
+    None unless the stage computes its parameters (`num_steps == 0`) and `stage_dir` holds its
+    checkpoint and `stage.json`. Training with `--resume` would restore that checkpoint over a fresh
+    computation anyway; this skips the computation (MotionMap's t-SNE map takes minutes). The folder
+    is checked as `check_stage_dir` does (method, stage, upstream steps), the shapes against its `stage.json`.
+    """
+    if stage.num_steps != 0 or not (stage_dir / MANIFEST).is_file() or not (stage_dir / "ckpt").is_dir():
+        return None
+    params = restore_untargeted(stage_dir)
+    check_stage_dir(method, stage, TrainState(step=0, params=params, opt_state=None), stage_dir, upstream)
+    return params
+
+
 def run_stage(
     method: Method, stage: Stage, cfg, workdir: str | Path, trained: dict[str, Any], resume: bool = False,
     upstream: dict[str, int] | None = None, curve: Curve | None = None,
@@ -112,15 +159,20 @@ def run_stage(
 
     `upstream` maps the frozen stages to their step counts (default: their configured `num_steps`).
     `curve` is evaluated every `cfg.curve_every` steps with the earlier stages and this one's current
-    parameters, into the stage's log (`loop.fit`).
+    parameters, into the stage's log (`loop.fit`). A computed stage already checkpointed is restored
+    with `--resume`, not computed again (`_computed_from_checkpoint`).
     """
-    state = init_state(stage, trained)
     stage_dir = Path(workdir) / stage.name
     upstream = {n: int(v) for n, v in (upstream or {}).items()}
+    if resume:
+        done = _computed_from_checkpoint(method, stage, stage_dir, upstream)
+        if done is not None:
+            return done
+    state = init_state(stage, trained)
     check_stage_dir(method, stage, state, stage_dir, upstream)
     stage_dir.mkdir(parents=True, exist_ok=True)
     manifest = stage_dir / MANIFEST
-    if not manifest.exists():
+    if not manifest.exists() and distributed.is_main():
         # Written whole or not at all: a kill mid-write must not leave a manifest that stops `--resume`.
         tmp = manifest.with_name(MANIFEST + ".tmp")
         tmp.write_text(json.dumps(_manifest(method, stage, state, upstream), indent=1))
@@ -142,8 +194,11 @@ def restore_stage(method: Method, stage: Stage, workdir: str | Path, trained: di
     half-written): a `CheckpointError` that points at `train --resume`, which falls back to the
     checkpoint before it. Without `stage.json` it is reported as a mismatch.
     """
-    state = init_state(stage, trained)
     stage_dir = Path(workdir) / stage.name
+    done = _computed_from_checkpoint(method, stage, stage_dir, None)
+    if done is not None:
+        return done
+    state = init_state(stage, trained)
     check_stage_dir(method, stage, state, stage_dir)
     try:
         return restore_params(stage_dir, state).params
@@ -170,7 +225,13 @@ def train(method: Method, cfg, prep, workdir: str | Path, resume: bool = False, 
     """
     trained: dict[str, Any] = {}
     steps: dict[str, int] = {}
-    for stage in method.stages(cfg, prep):
+    stages = method.stages(cfg, prep)
+    mesh = distributed.data_mesh()
+    for stage in stages:  # a batch that does not split over the devices is reported before any stage trains
+        if stage.num_steps:
+            distributed.check_batch(stage.batches(np.random.default_rng([stage.data_seed, 0])), mesh,
+                                    f"stage {stage.name!r} of method {method.name!r}")
+    for stage in stages:
         trained[stage.name] = run_stage(
             method, stage, cfg, workdir, trained, resume, {n: steps[n] for n in stage.frozen}, curve
         )
