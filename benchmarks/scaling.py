@@ -128,8 +128,11 @@ def worker(args) -> None:
 
 def _table(rows: list[dict], args, cores: int) -> str:
     base = rows[0]
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from harness import machine
+
     lines = [
-        f"Run {time.strftime('%Y-%m-%dT%H:%M:%S')} on {platform.processor() or platform.machine()}, {cores} logical CPUs "
+        f"Run {time.strftime('%Y-%m-%dT%H:%M:%S')} on **{machine()['cpu']}**, {cores} logical CPUs "
         f"({platform.platform()}); jax {_jax_version()}; device: {base['device']}.",
         "",
         f"Command: `python benchmarks/scaling.py {' '.join(sys.argv[1:])}`. DLow CVAE ({'tiny' if args.tiny else 'default'} sizes), "

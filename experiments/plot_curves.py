@@ -87,7 +87,13 @@ def plot(runs: list[tuple[str, dict]], out: Path) -> None:
                     tag = name if len(runs) == 1 else f"{name} {label}"
                     ax.plot([s for s, _ in pts], [p[m] for _, p in pts], marker=".", color=colors[preds.index(name) % len(colors)],
                             alpha=1.0 if len(runs) == 1 else 0.7, label=tag)
-            ax.set_title(f"{stage}: {m}", fontsize=9)
+            # The untrained step-0 point would flatten the rest of the curve: the y-range is that of the later points.
+            later = [p[m] for _, c in runs for pts in c.get(stage, {}).values() for s, p in pts if s > 0]
+            if later:
+                lo, hi = min(later), max(later)
+                pad = 0.08 * (hi - lo) or 0.05 * abs(hi) or 0.05
+                ax.set_ylim(lo - pad, hi + pad)
+            ax.set_title(f"{stage}: {m}" + (" (step 0 may be off the scale)" if later else ""), fontsize=9)
             ax.set_xlabel("step")
             ax.grid(alpha=0.3)
             if c == 0:
