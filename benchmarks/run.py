@@ -35,7 +35,9 @@ sys.path.insert(0, str(ROOT))
 
 from benchmarks.harness import MODELS, Settings, machine  # noqa: E402
 
-TARGETS = {"train": 1.5, "sample_k50": 3.0}  # jaxmotion / PyTorch-eager speed-ups asked for (issue 6)
+TARGETS = {"train": 1.5, "sample_k50": 2.0}  # jaxmotion / PyTorch-eager speed-ups asked for (issue 18)
+# Issue 18: a case whose jaxmotion time is above this fraction of the measured peak is limited by the machine.
+MACHINE_LIMITED = 0.6
 BEGIN, END = "<!-- results:begin -->", "<!-- results:end -->"
 WORKERS = {
     "jax": ["-m", "benchmarks.jax_bench"],
@@ -137,8 +139,10 @@ def _gflop(row: dict) -> str:
     return f"{f / 1e9:.3g}" if f else "-"
 
 
-def _target(row: dict, s: Settings) -> str:
+def _target(row: dict, s: Settings, peak: float | None = None) -> str:
     r = row.get("ratio_torch_eager")
+    g = _gflops(row, "jax")
+    at_limit = bool(peak and g is not None and g / peak > MACHINE_LIMITED)
     if row["kind"].startswith("train"):
         goal = TARGETS["train"]
     elif row["kind"] == "sample" and row["k"] == s.k:
@@ -147,7 +151,11 @@ def _target(row: dict, s: Settings) -> str:
         return ""
     if r is None:
         return "?"
-    return f"met (>= {goal}x)" if r >= goal else f"**missed** (< {goal}x)"
+    if r >= goal:
+        return f"met (>= {goal}x)"
+    if at_limit:
+        return f"machine-limited (> {MACHINE_LIMITED:.0%} of peak; PyTorch trails by {r:.2f}x)"
+    return f"**missed** (< {goal}x)"
 
 
 def render(doc: dict) -> str:
@@ -182,7 +190,7 @@ def render(doc: dict) -> str:
                      "train_generator": f"generator (nk1 x nk2 = {r['k']})"}.get(r["kind"], f"sampler (K = {r['k']})")
             lines.append(f"| {r['model']} | {stage} | {r['batch']} | {_ms(r.get('jax'))} | {_ms(r.get('torch_eager'))} | "
                          f"{_ratio(r, 'torch_eager')} | {_wps(r, 'jax')} / {_wps(r, 'torch_eager')} | {_gflop(r)} | "
-                         f"{_pcts(r, eager, peak)} | {_target(r, s)} |")
+                         f"{_pcts(r, eager, peak)} | {_target(r, s, peak)} |")
     lines += [
         "",
         f"### Sampling K = {s.k} futures (the method's own sampler)",
@@ -194,7 +202,7 @@ def render(doc: dict) -> str:
         if r["kind"] == "sample":
             lines.append(f"| {r['model']} | {r['batch']} | {_ms(r.get('jax'))} | {_ms(r.get('torch_eager'))} | "
                          f"{_ms(r.get('torch_compile'))} | {_ratio(r, 'torch_eager')} | {_ratio(r, 'torch_compile')} | "
-                         f"{_gflop(r)} | {_pcts(r, compiled, peak)} | {_target(r, s)} |")
+                         f"{_gflop(r)} | {_pcts(r, compiled, peak)} | {_target(r, s, peak)} |")
     heat = [r for r in rows if r["kind"] == "heatmap"]
     if heat:
         lines += [
