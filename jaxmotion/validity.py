@@ -45,9 +45,11 @@ class PoseValidity(NamedTuple):
 
 def from_gsps_run(cfg, ds, params: dict) -> PoseValidity:
     """Returns the `PoseValidity` of a trained GSPS run: its skeleton, its `angle_bounds` stage and its `prior` stage."""
-    from jaxmotion.methods.gsps import settings
-
-    c = settings(cfg)
+    # The settings are read here, not through `methods.gsps.settings`: methods import this module (layers import one way).
+    mc = cfg.method_config if cfg.method_config is not None else gsps.GSPSConfig()
+    if not isinstance(mc, gsps.GSPSConfig):
+        raise TypeError(f"from_gsps_run: config {cfg.name!r} is not a GSPS run's (method_config {type(mc).__name__})")
+    c = gsps.check_config(mc)
     return PoseValidity(
         names=tuple(ds.skeleton.names), parents=tuple(int(p) for p in ds.skeleton.parents),
         bounds=np.asarray(params["angle_bounds"]["bounds"], np.float32),
