@@ -3,7 +3,7 @@
     python experiments/compare_methods.py RUN_DIR [RUN_DIR ...] --data ../shared/data/bandai-namco-2 \
         [--windows 3] [--k 50] [--out experiments/results/compare_methods_bandai.png]
 
-Every RUN_DIR is a trained run (with `metrics.json`, whose config it reads) on the same data; each
+Every RUN_DIR is a finished run (with `metrics.json`; its config from `predictor.run_config`) on the same data; each
 contributes its method's own sampler (`--samplers NAME ...` picks others, one per run, e.g. `cvae`).
 Windows: the `--windows` test windows whose multimodal ground truth (PROTOCOL sec. 2) is most
 spread (`experiment.most_multimodal`). One row per window; the first column overlays the end
@@ -15,7 +15,6 @@ and its best-of-K final displacement on that window.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -37,18 +36,19 @@ def main(argv=None) -> int:
 
     from jaxmotion import experiment as ex
     from jaxmotion import metrics
-    from jaxmotion.predictor import config_from_dict
+    from jaxmotion.predictor import run_config
     from jaxmotion.viz import draw_pose, frames_to_joints, view_axes, plt
 
     if args.samplers is not None and len(args.samplers) != len(args.runs):
         ap.error(f"--samplers needs one name per run ({len(args.runs)}), got {len(args.samplers)}")
-    cfgs = []
+    cfgs, sources = [], []
     for run in args.runs:
-        f = run / "metrics.json"
-        if not f.is_file():
+        if not (run / "metrics.json").is_file():
             ap.error(f"{run}: no metrics.json (not a finished run)")
-        cfgs.append(config_from_dict(json.loads(f.read_text())[0]["config"]))
-    ds = ex.load_data(cfgs[0], args.data)
+        cfg, source = run_config(run)
+        cfgs.append(cfg)
+        sources.append(source)
+    ds = ex.load_data(cfgs[0], args.data or sources[0])
     prep = ex.prepare(ds)
     sel = ex.most_multimodal(prep, args.windows)
     x, y = prep.x[sel], prep.y[sel]

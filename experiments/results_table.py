@@ -104,12 +104,13 @@ def headline(run_dirs: list[str], metrics: tuple[str, ...]) -> str:
         f = Path(d) / "metrics.json"
         if not f.is_file():
             continue
-        for rec in json.loads(f.read_text()):
+        records = json.loads(f.read_text())
+        for rec in records:
             seed = int(rec.get("seed", rec["config"].get("seed", 0)))
             rows[(int(rec["K"]), rec["method"])][rec["config"]["name"]][seed] = rec["metrics"]
         m = train_minutes(Path(d))
         if m is not None:
-            minutes[json.loads(f.read_text())[0]["config"]["name"]].append(m)
+            minutes[records[0]["config"]["name"]].append(m)
     extra = [m for m in HEADLINE_EXTRA if any(m in v for r in rows.values() for c in r.values() for v in c.values())]
     cols = list(metrics) + extra
     order = {name: i for i, name in enumerate(LABELS)}

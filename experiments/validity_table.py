@@ -35,17 +35,12 @@ HEADERS = {"angle_violation": "angle viol.", "prior_nll": "prior NLL", "prior_nl
 def load_run(run: Path, data: str | None, max_windows: int | None, cache: dict):
     """Returns `(cfg, prep, params)` of a trained run directory, its data loaded once per (source, options, seed)."""
     from jaxmotion import experiment
-    from jaxmotion.predictor import MANIFEST, config_from_dict
+    from jaxmotion.predictor import run_config
 
-    path, metrics_file = run / MANIFEST, run / "metrics.json"
-    if path.is_file():
-        manifest = json.loads(path.read_text())
-        cfg, source = config_from_dict(manifest["config"]), manifest["dataset"]["source"]
-    elif metrics_file.is_file():  # a run evaluated before predictor.json existed: its records hold the config
-        cfg = config_from_dict(json.loads(metrics_file.read_text())[0]["config"])
-        source = cfg.dataset
-    else:
-        raise SystemExit(f"{run}: neither {MANIFEST} nor metrics.json; not a trained run (jaxmotion train / run write them)")
+    try:
+        cfg, source = run_config(run)
+    except FileNotFoundError as e:
+        raise SystemExit(str(e)) from None
     cfg = experiment.resolve(cfg)
     spec = data or source
     key = (spec, json.dumps(cfg.data_options, sort_keys=True), cfg.seed if spec == "synthetic" else None, cfg.train_sampler)

@@ -105,6 +105,23 @@ def config_from_dict(d: dict) -> Config:
     return cfg
 
 
+def run_config(run_dir: str | Path) -> tuple[Config, str]:
+    """Returns `(config, data source)` of a trained run: from its `predictor.json`, else from its metrics.json records.
+
+    The second is for runs evaluated before `predictor.json` existed (their records hold the
+    config; the source is then the config's `dataset`). FileNotFoundError when the folder has neither.
+    """
+    run_dir = Path(run_dir)
+    manifest, records = run_dir / MANIFEST, run_dir / "metrics.json"
+    if manifest.is_file():
+        m = json.loads(manifest.read_text())
+        return config_from_dict(m["config"]), m["dataset"]["source"]
+    if records.is_file():
+        cfg = config_from_dict(json.loads(records.read_text())[0]["config"])
+        return cfg, cfg.dataset
+    raise FileNotFoundError(f"{run_dir}: neither {MANIFEST} nor metrics.json; not a trained run (jaxmotion train / run write them)")
+
+
 def _build(cls, d: dict):
     hints = typing.get_type_hints(cls)
     kw = {}

@@ -15,7 +15,9 @@ from pathlib import Path
 from typing import Any
 
 import jax
+import jax.numpy as jnp
 import numpy as np
+import orbax.checkpoint as ocp
 
 from jaxmotion import distributed
 from jaxmotion.errors import CheckpointError
@@ -112,9 +114,6 @@ def restore_untargeted(stage_dir: Path):
     No `stage.init` is needed for the structure, so nothing is computed: `jaxmotion.load` and the
     restore of computed stages (`Stage.num_steps == 0`, e.g. MotionMap's t-SNE codebook) use it.
     """
-    import jax.numpy as jnp
-    import orbax.checkpoint as ocp
-
     ckpt = (Path(stage_dir) / "ckpt").absolute()
     mngr = ocp.CheckpointManager(ckpt)
     try:
