@@ -9,6 +9,7 @@
     jaxmotion sample --config experiments/configs/gsps_synthetic.py --window 208 --fix-part lower   # one lower body, 10 upper bodies
     jaxmotion methods                               # the registered methods and their stages' settings type
     jaxmotion predict RUN_DIR --input clip.bvh [--frame F] [--k K] [--method M] --out DIR   # your own motion
+    jaxmotion view RUN_DIR [--out FILE.html] [--windows N] [--k K] [--method M]   # a 3-D viewer page (plotly)
 """
 
 from __future__ import annotations
@@ -53,7 +54,7 @@ def _parser() -> argparse.ArgumentParser:
     sub.add_parser("methods", help="list the registered methods")
     s = sub.add_parser("predict", help="K futures of your own clip (BVH or npz of joint positions) from a trained run")
     s.add_argument("run_dir", help="a trained work directory (with predictor.json)")
-    s.add_argument("--input", required=True, help="a .bvh clip or an .npz with 'positions' (T, J, 3) [, 'names', 'fps', 'scale']")
+    s.add_argument("--input", required=True, help="a .bvh clip, an .npz with 'positions' (T, J, 3) [, 'names', 'fps', 'scale'], or a .c3d marker file (marker models)")
     s.add_argument("--frame", type=int, default=None,
                    help="input frame that ends the observed window (default: the last one whose whole future is in the clip, else the last frame)")
     s.add_argument("--k", type=int, default=None, help="number of futures (default: the run's largest K)")
@@ -61,6 +62,17 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--scale", type=float, default=None, help="metres per file unit (default: guessed for BVH, 1 for npz)")
     s.add_argument("--seed", type=int, default=0, help="seed of the sampling key")
     s.add_argument("--out", required=True, help="output folder: futures.npz, future_NN.bvh, samples.gif")
+    s = sub.add_parser("view", help="one self-contained HTML page to browse test windows and their K futures in 3-D (needs plotly)")
+    s.add_argument("run_dir", nargs="?", default=None, help="a trained work directory (default: --workdir, else runs/<config name>)")
+    s.add_argument("--config", default=None, help="config file that rebuilds the test windows (default: the run's own, from predictor.json)")
+    s.add_argument("--data", default=None, help="the dataset (default: the one the run was trained on)")
+    s.add_argument("--workdir", default=None, help="the trained work directory, as for sample (same as RUN_DIR)")
+    s.add_argument("--test-files", nargs="+", default=None, metavar="PATTERN", help="a plain BVH folder's test files, as for sample")
+    s.add_argument("--out", default=None, help="the HTML file (default: RUN_DIR/view.html)")
+    s.add_argument("--windows", type=int, default=6, help="how many test windows, the most multimodal first (default 6)")
+    s.add_argument("--k", type=int, default=10, help="futures per window (default 10)")
+    s.add_argument("--method", default=None, help="which predictor (default: the run's method)")
+    s.add_argument("--seed", type=int, default=0, help="seed of the sampling key")
     return p
 
 
@@ -100,6 +112,8 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         print("\n".join(lines))
         return 0
+    if args.command == "view":
+        return _view(args)
     from jaxmotion import distributed
 
     if args.command in ("run", "train", "eval"):  # before anything runs on a device
@@ -167,6 +181,34 @@ def main(argv: list[str] | None = None) -> int:
         print(f"wrote {out}.npz and {out}.png")
     else:
         print(f"checkpoints: {workdir}  total {time.perf_counter() - t0:.0f}s")
+    return 0
+
+
+def _view(args) -> int:
+    """`jaxmotion view`: writes the page (`jaxmotion.viewer.view_run`); a bad run, file or option is one line, exit code 2."""
+    from jaxmotion.errors import CheckpointError, DataError
+
+    run_dir = args.run_dir or args.workdir
+    if args.run_dir and args.workdir and Path(args.run_dir).absolute() != Path(args.workdir).absolute():
+        raise SystemExit(f"jaxmotion view: RUN_DIR {args.run_dir} and --workdir {args.workdir} differ; give one")
+    if run_dir is None:
+        from jaxmotion.config import load_config
+
+        run_dir = Path("runs") / load_config(args.config).name
+    try:
+        from jaxmotion.viewer import view_run
+
+        lines = view_run(run_dir, args.out, windows=args.windows, k=args.k, method=args.method, seed=args.seed,
+                         config=args.config, data=args.data, test_files=args.test_files)
+    except ModuleNotFoundError as e:
+        if e.name != "plotly":
+            raise
+        print(f"jaxmotion view: {e}", file=sys.stderr)
+        return 2
+    except (DataError, CheckpointError, FileNotFoundError, ValueError) as e:  # the user's run or options: the message says it all
+        print(f"jaxmotion view: {e}", file=sys.stderr)
+        return 2
+    print("\n".join(lines))
     return 0
 
 

@@ -52,6 +52,13 @@ class Config:
     # None (protocol), "divsamp", "comusion" (`metrics.reduce_mm`) or "gsps" (GSPS's release: a test
     # window whose MM set is itself alone is skipped in every metric, `experiment.skip_single_future`).
     mm_deviation: str | None = None
+    # Where MMADE / MMFDE's multimodal ground truth comes from (PROTOCOL sec. 2; `experiment.reference_sets`):
+    # None: the method's own (`Method.reference_futures`: "test" for every method but MotionMap,
+    # "train" for it); "test": the protocol (last observed pose within the dataset's threshold, test
+    # windows); "train": the same over the training windows (every t_his frames); "motionmap-test" /
+    # "motionmap-train": MotionMap's (last three observed frames, candidates motion-transferred onto
+    # the window's skeleton, and so are their futures before the metrics; MotionMap Tables 3-4 / 1-2).
+    mm_ground_truth: str | None = None
     # Learning curves: every `curve_every` training steps (0: never) each stage evaluates APD, ADE,
     # FDE, MMADE and MMFDE of the predictors its parameters so far allow, at K = `curve_k`, on
     # `curve_windows` evenly spaced test windows (their MM sets over every test window), into its
@@ -59,6 +66,12 @@ class Config:
     curve_every: int = 0
     curve_windows: int = 200
     curve_k: int = 50
+    # CMD and FID (`jaxmotion.action_metrics`, PROTOCOL sec. 2) in every record's metrics when the
+    # dataset has action labels (Bandai-Namco-2, the synthetic data); absent otherwise. FID's action
+    # classifier is the project's own (not BeLFusion's Human3.6M one), trained once per dataset for
+    # `action_classifier_steps` Adam steps and cached under `~/.cache/jaxmotion/action_classifiers/`.
+    action_metrics: bool = True
+    action_classifier_steps: int = 1000
 
 
 def load_config(path: str | Path | None) -> Config:
@@ -105,7 +118,8 @@ def _unknown_fields(path: Path, namespace: dict) -> list[str]:
     return problems
 
 
-_CHOICES = {"train_sampler": ("windows", "sequences"), "mm_deviation": (None, "divsamp", "comusion", "gsps")}
+_CHOICES = {"train_sampler": ("windows", "sequences"), "mm_deviation": (None, "divsamp", "comusion", "gsps"),
+            "mm_ground_truth": (None, "test", "train", "motionmap-test", "motionmap-train")}
 # `Config`'s intervals: (field, rule, what the rule asks), checked once the field's type is right.
 _CONFIG_RULES = (
     *((n, lambda v: v >= 1, ">= 1") for n in ("ckpt_every", "log_every", "eval_batch")),
@@ -116,6 +130,7 @@ _CONFIG_RULES = (
     ("mode_max_boundary", lambda v: v >= 0, ">= 0"),
     ("curve_every", lambda v: v >= 0, ">= 0 (0: no learning curve)"),
     *((n, lambda v: v >= 1, ">= 1") for n in ("curve_windows", "curve_k")),
+    ("action_classifier_steps", lambda v: v >= 1, ">= 1"),
 )
 
 

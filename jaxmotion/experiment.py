@@ -15,13 +15,14 @@ import json
 import platform
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-from jaxmotion import distributed, metrics
+from jaxmotion import action_metrics, distributed, metrics
 from jaxmotion.compile_time import CompileTimer
 from jaxmotion.config import Config, to_dict
 from jaxmotion.data.datasets import BANDAI_TARBALL, load_dataset
@@ -201,32 +202,81 @@ def predictors(cfg: Config, ds: MotionDataset, params: dict, k: int) -> dict[str
     return get_method(cfg.method).predictors(cfg, ds, params, k)
 
 
+# The sources of MMADE / MMFDE's multimodal ground truth (`Config.mm_ground_truth`).
+MM_SOURCES = ("test", "train", "motionmap-test", "motionmap-train")
+# MotionMap's descriptor: the last three observed frames (paper appendix A; PROTOCOL sec. 2 option).
+MOTIONMAP_DESCRIPTOR_FRAMES = 3
+
+
+class MMReference(NamedTuple):
+    """The multimodal ground truth of an evaluation: sets, the futures they index and how they are compared."""
+
+    source: str  # one of MM_SOURCES
+    sets: metrics.MMSets
+    futures: np.ndarray | None  # the futures `sets` index; None: the test windows' own ground truth
+    transfer_poses: np.ndarray | None  # MotionMap: each test window's last observed pose (its skeleton)
+    transfer_parents: tuple[int, ...] | None  # MotionMap: the skeleton's parents (root first)
+
+
+def mm_source(cfg: Config, method: Method) -> str:
+    """Returns where `cfg`'s evaluation takes its MM ground truth from: `cfg.mm_ground_truth`, else the method's own."""
+    return cfg.mm_ground_truth or method.reference_futures
+
+
+def mm_reference(prep: Prepared, source: str, *, cache_dir: str | Path | None = None) -> MMReference:
+    """Returns the multimodal ground truth of the test windows of `prep` from `source` (one of `MM_SOURCES`).
+
+    "test" (PROTOCOL sec. 2): MM sets over the test windows. "train": the futures of training
+    windows (every `t_his` frames of every training sequence) whose last observed pose is within the
+    dataset's threshold, a pseudo ground truth some published code compares against.
+    "motionmap-test" / "motionmap-train": MotionMap's (PROTOCOL sec. 2 option): the descriptor is
+    the last three observed frames, a candidate (a test / training window) is a member when its
+    descriptor, motion-transferred onto this window's skeleton (its last observed frame), is within
+    the threshold of this window's, and the members' futures are motion-transferred onto that
+    skeleton before MMADE / MMFDE. The threshold is the dataset's `mm_threshold` in every case.
+    """
+    if source not in MM_SOURCES:
+        raise ValueError(f"MM ground truth: source must be one of {MM_SOURCES}, got {source!r}")
+    ds = prep.dataset
+    train = source.endswith("train")
+    if train:
+        if prep.train_frames is None:
+            raise ValueError(f"MM ground truth {source!r}: training-window reference futures need uncanonicalised frames")
+        ref, _, _ = test_windows(prep.train_frames, ds.t_his, ds.t_pred)
+    if not source.startswith("motionmap"):
+        if not train:
+            return MMReference(source, metrics.multimodal_gt(prep.x[:, -1], ds.mm_threshold), None, None, None)
+        sets = metrics.multimodal_gt(prep.x[:, -1], ds.mm_threshold, reference_last_poses=ref[:, ds.t_his - 1])
+        return MMReference(source, sets, ref[:, ds.t_his :], None, None)
+    if prep.train_frames is None:
+        raise ValueError(f"MM ground truth {source!r}: motion transfer needs joint frames, not marker frames")
+    parents = tuple(int(q) for q in ds.skeleton.parents)
+    f = min(MOTIONMAP_DESCRIPTOR_FRAMES, ds.t_his)
+    ref_desc = ref[:, ds.t_his - f : ds.t_his] if train else None
+    sets = metrics.motionmap_mm_sets(prep.x[:, -f:], ds.mm_threshold, parents, reference_desc=ref_desc, cache_dir=cache_dir)
+    futures = ref[:, ds.t_his :] if train else None
+    return MMReference(source, sets, futures, np.asarray(prep.x[:, -1], np.float32), parents)
+
+
 def reference_sets(method: Method, prep: Prepared):
     """Returns `(mm, reference_futures)` for `metrics.evaluate_windows`: the multimodal ground truth the method asks for.
 
-    "test" (PROTOCOL sec. 2): MM sets over the test windows. "train": the futures of training windows
-    (every `t_his` frames of every training sequence) whose last observed pose is within the
-    dataset's threshold, a pseudo ground truth some published code compares against.
+    "test" (PROTOCOL sec. 2) or "train" (`Method.reference_futures`); see `mm_reference`.
     """
-    ds = prep.dataset
-    if method.reference_futures == "test":
-        return metrics.multimodal_gt(prep.x[:, -1], ds.mm_threshold), None
-    if prep.train_frames is None:
-        raise ValueError(f"method {method.name!r}: training-window reference futures need uncanonicalised frames")
-    ref, _, _ = test_windows(prep.train_frames, ds.t_his, ds.t_pred)
-    sets = metrics.multimodal_gt(prep.x[:, -1], ds.mm_threshold, reference_last_poses=ref[:, ds.t_his - 1])
-    return sets, ref[:, ds.t_his :]
+    r = mm_reference(prep, method.reference_futures)
+    return r.sets, r.futures
 
 
-def skip_single_future(prep: Prepared, method: Method) -> Prepared:
+def skip_single_future(prep: Prepared, method: Method, source: str | None = None) -> Prepared:
     """Returns `prep` without the test windows whose MM set is themselves alone (`Config.mm_deviation="gsps"`).
 
     GSPS's release (`eval.py`: `if gt_multi.shape[0] == 1: continue`) skips such a window in every
     metric and averages over the others. MM membership is symmetric (PROTOCOL sec. 2), so no
     remaining window loses a member: the protocol on the remaining windows is that deviation.
     """
-    if method.reference_futures != "test":
-        raise ValueError(f"mm_deviation='gsps' needs test-window reference futures; method {method.name!r} uses training windows")
+    source = source or method.reference_futures
+    if source != "test":
+        raise ValueError(f"mm_deviation='gsps' needs test-window reference futures; the MM ground truth of {method.name!r} here is {source!r}")
     sets = metrics.multimodal_gt(prep.x[:, -1], prep.dataset.mm_threshold)
     idx, mask = np.asarray(sets.idx), np.asarray(sets.mask)
     sel = np.flatnonzero((mask & (idx != np.arange(len(idx))[:, None])).any(axis=1))
@@ -267,30 +317,41 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
     cfg = resolve(cfg)
     deviation = cfg.mm_deviation
     if deviation == "gsps":  # GSPS's release: windows whose MM set is themselves alone enter no metric
-        prep, deviation = skip_single_future(prep, method), None
+        prep, deviation = skip_single_future(prep, method, mm_source(cfg, method)), None
     modes = None
     if ds.known_modes is not None:
         modes = ds.known_modes(ds)
         sel = prep.keep
         modes = modes._replace(modes=modes.modes[sel], true_mode=modes.true_mode[sel], boundary=modes.boundary[sel])
     x, y = prep.x, prep.y
+    source = mm_source(cfg, method)
+    transfer = {}
     if cfg.mm_deviation == "divsamp":
         # DivSamp's deviation drops exact-duplicate last poses, so evaluate_windows builds its sets from the poses.
-        if method.reference_futures != "test":
-            raise ValueError(f"mm_deviation='divsamp' needs test-window reference futures; method {method.name!r} uses training windows")
+        if source != "test":
+            raise ValueError(f"mm_deviation='divsamp' needs test-window reference futures; the MM ground truth here is {source!r}")
         mm, thr, ref_futures = x[:, -1], ds.mm_threshold, None
     else:
-        (mm, ref_futures), thr = reference_sets(method, prep), None
+        ref = mm_reference(prep, source)
+        mm, thr, ref_futures = ref.sets, None, ref.futures
+        if ref.transfer_parents is not None:
+            transfer = dict(transfer_poses=ref.transfer_poses, transfer_parents=ref.transfer_parents)
     if not (workdir / "predictor.json").exists():  # a run trained before `predictor.json` existed
         from jaxmotion.predictor import write_manifest
 
         write_manifest(cfg, ds, workdir)
     records = []
     extra_fn, record_fields = method.evaluation_hooks(cfg, ds, params)
+    action = None  # CMD and FID (`Config.action_metrics`): only where the dataset has action labels
+    if cfg.action_metrics:
+        c = action_metrics.ClassifierConfig(num_steps=cfg.action_classifier_steps)
+        action = action_metrics.evaluator(ds, y, prep.seq_index, prep.starts, config=c, batch=cfg.eval_batch)
+    if action is not None:
+        record_fields = {**record_fields, "action_classifier": action.summary()}
     for k in cfg.eval_k:
         for name, fn in method.predictors(cfg, ds, params, k).items():
             t0 = time.perf_counter()
-            recalls, extras = [], []
+            recalls, extras, action_parts = [], [], []
 
             def chunks():
                 for i, p in enumerate(predict_chunks(fn, x, jax.random.key(cfg.seed + 7), cfg.eval_batch)):
@@ -307,11 +368,13 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
                         recalls.append((np.asarray(r)[:n], np.asarray(w)[:n]))
                     if extra_fn is not None:
                         extras.append(extra_fn(ds, p, y[i * cfg.eval_batch : i * cfg.eval_batch + p.shape[0]]))
+                    if action is not None:
+                        action_parts.append(action.chunk(p))
                     yield p
 
             with CompileTimer() as compiling:  # the predictor's first call, and the metrics' at a new K, compile
                 m = metrics.evaluate_windows(
-                    chunks(), y, mm, thr=thr, reference_futures=ref_futures, mm_deviation=deviation
+                    chunks(), y, mm, thr=thr, reference_futures=ref_futures, mm_deviation=deviation, **transfer
                 )
             m.pop("n_windows")  # a top-level field of the record (PROTOCOL sec. 5)
             if modes is not None:
@@ -324,6 +387,8 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
                 m["mode_windows"] = int(sel.sum())
             for key in extras[0] if extras else ():
                 m[key] = float(np.nanmean(np.concatenate([e[key] for e in extras])))
+            if action is not None:
+                m.update(action.result(action_parts))
             wall = time.perf_counter() - t0
             rec = {
                 "dataset": data_label or ds.name,
@@ -331,6 +396,7 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
                 "K": k,
                 "n_windows": int(len(x)),
                 "metrics": m,
+                "mm_source": source,  # where MMADE / MMFDE's ground truth came from (`mm_reference`)
                 "seed": cfg.seed,
                 "config": {**to_dict(cfg), **record_fields},
                 "jax_version": jax.__version__,
@@ -348,7 +414,7 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
 
 def format_record(rec: dict) -> str:
     m = rec["metrics"]
-    keys = ["APD", "ADE", "FDE", "MMADE", "MMFDE", "ADE-m", "FDE-m", "mode_recall", "mode_recall_weighted"]
+    keys = ["APD", "ADE", "FDE", "MMADE", "MMFDE", "ADE-m", "FDE-m", "mode_recall", "mode_recall_weighted", "CMD", "FID"]
     vals = " ".join(f"{k}={m[k]:.4f}" for k in keys if k in m)
     compiling = f", {rec['compile_s']:.1f}s compiling" if "compile_s" in rec else ""
     return f"[{rec['dataset']}] {rec['method']:<13s} K={rec['K']:<3d} {vals} ({rec['wall_s']:.1f}s{compiling})"

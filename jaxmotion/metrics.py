@@ -20,8 +20,10 @@ inputs, `idx` entries outside the futures, non-positive thresholds, and the chun
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Iterable, Iterator
 from functools import partial
+from pathlib import Path
 from typing import Literal, NamedTuple
 
 import jax
@@ -256,15 +258,126 @@ def multimodal_gt(
         i, j = np.nonzero(near)
         rows.append(i + s)
         cols.append(j)
+    idx, mask = _left_packed(rows, cols, n)
+    return MMSets(jnp.asarray(idx), jnp.asarray(mask))
+
+
+def _left_packed(rows: list[np.ndarray], cols: list[np.ndarray], n: int) -> tuple[np.ndarray, np.ndarray]:
+    # The (row, member) pairs of `np.nonzero` chunks as left-packed `(idx, mask)`, (n, max members).
     rows, cols = np.concatenate(rows), np.concatenate(cols)
     counts = np.bincount(rows, minlength=n)
     m = max(1, int(counts.max(initial=0)))
     # np.nonzero returns row-major order, so each row's members are contiguous.
     pos = np.arange(rows.size) - np.repeat(np.cumsum(counts) - counts, counts)
-    idx = np.zeros((n, m), np.int32)
-    mask = np.zeros((n, m), bool)
-    idx[rows, pos] = cols
-    mask[rows, pos] = True
+    idx, mask = np.zeros((n, m), np.int32), np.zeros((n, m), bool)
+    idx[rows, pos], mask[rows, pos] = cols, True
+    return idx, mask
+
+
+# --------------------------------------------------------------------------------------------
+# MotionMap's multimodal ground truth (PROTOCOL sec. 2 option; MotionMap appendix A): candidates
+# are motion-transferred onto the window's skeleton before they are compared, and so are their futures.
+
+
+def frame_parents(parents: tuple[int, ...]) -> tuple[int, ...]:
+    """Returns the parent of every frame joint (skeleton joint j + 1), -1 where the parent is the dropped root."""
+    parents = tuple(int(p) for p in parents)
+    if parents[0] != -1 or any(not 0 <= p < j for j, p in enumerate(parents) if j):
+        raise ValueError(f"motion transfer needs joint 0 as the root and every parent before its child, got parents {parents}")
+    return tuple(p - 1 for p in parents[1:])
+
+
+def motion_transfer(
+    source: Float[Array, "*s d"], target: Float[Array, "*t d"], parents: tuple[int, ...]
+) -> Float[Array, "*o d"]:
+    """Returns `source`'s motion on `target`'s skeleton (MotionMap appendix A), broadcast over leading axes.
+
+    Every link keeps the direction it has in `source` (its spherical angles) and takes the length it
+    has in `target`; joints are rebuilt parent to child from the root at the origin. `parents` is
+    the skeleton's (root first, dropped from the frame vectors).
+    """
+    fp = frame_parents(parents)
+    src = source.reshape(source.shape[:-1] + (-1, 3))
+    tgt = target.reshape(target.shape[:-1] + (-1, 3))
+    shape = jnp.broadcast_shapes(src.shape[:-2], tgt.shape[:-2]) + (3,)
+    zero = jnp.zeros((), source.dtype)
+    out: list = []
+    for j, p in enumerate(fp):
+        v_src = src[..., j, :] - (src[..., p, :] if p >= 0 else zero)
+        v_tgt = tgt[..., j, :] - (tgt[..., p, :] if p >= 0 else zero)
+        norm = jnp.linalg.norm(v_src, axis=-1, keepdims=True)
+        direction = v_src / jnp.maximum(norm, 1e-12)
+        length = jnp.linalg.norm(v_tgt, axis=-1, keepdims=True)
+        base = out[p] if p >= 0 else jnp.zeros(shape, source.dtype)
+        out.append(jnp.broadcast_to(base + length * direction, shape))
+    return jnp.stack(out, axis=-2).reshape(shape[:-1] + (-1,))
+
+
+def _near_fn(parents: tuple[int, ...]):
+    @jax.jit
+    def near(desc_q: Float[Array, "c f d"], desc_ref: Float[Array, "r f d"], thr: Float[Array, ""]) -> Bool[Array, "c r"]:
+        # Every reference descriptor onto each query's skeleton (its last observed frame).
+        moved = motion_transfer(desc_ref[None], desc_q[:, None, -1:], parents)  # (c, r, f, d)
+        diff = moved.reshape(moved.shape[:2] + (-1,)) - desc_q.reshape(desc_q.shape[0], 1, -1)
+        return jnp.sqrt(jnp.sum(diff**2, axis=-1)) < thr
+
+    return near
+
+
+def motionmap_mm_sets(
+    desc: Float[np.ndarray, "n f d"],
+    thr: float,
+    parents: tuple[int, ...],
+    *,
+    reference_desc: Float[np.ndarray, "r f d"] | None = None,
+    max_chunk_elems: int = 4_000_000,
+    cache_dir: str | Path | None = None,
+) -> MMSets:
+    """Returns left-packed `MMSets` of MotionMap's multimodal ground truth (appendix A; PROTOCOL sec. 2 option).
+
+    `desc[i]` is window i's descriptor (its last three observed frames). Candidate j is a member of
+    MM(i) when `||vec(transfer(desc_j -> skeleton of i)) - vec(desc_i)|| < thr`, the skeleton of i
+    being its last observed frame. Candidates are the windows themselves (i is always a member of
+    its own set) or `reference_desc` (e.g. training windows, MotionMap Tables 1-2). Chunked over
+    query windows (about `max_chunk_elems` numbers per chunk); with `cache_dir` the sets are stored
+    in a file keyed by the data, the threshold and the skeleton.
+    """
+    desc = np.asarray(desc, np.float32)
+    if not np.all(np.isfinite(desc)):
+        raise ValueError("motionmap_mm_sets: `desc` contains NaN or inf")
+    if not np.isfinite(thr) or thr <= 0:
+        raise ValueError(f"motionmap_mm_sets: `thr` must be a positive distance, got {thr}")
+    ref = desc if reference_desc is None else np.asarray(reference_desc, np.float32)
+    cache = None
+    if cache_dir is not None:
+        h = hashlib.sha1(desc.tobytes())
+        h.update(ref.tobytes() if reference_desc is not None else b"self")
+        h.update(repr((float(thr), tuple(parents), desc.shape, ref.shape)).encode())
+        cache = Path(cache_dir) / f"motionmap_mm_{h.hexdigest()[:20]}.npz"
+        if cache.exists():
+            z = np.load(cache)
+            return MMSets(jnp.asarray(z["idx"]), jnp.asarray(z["mask"]))
+    near_fn = _near_fn(tuple(parents))
+    n, r = desc.shape[0], ref.shape[0]
+    c = int(max(1, min(n, max_chunk_elems // max(1, r * desc.shape[1] * desc.shape[2]))))
+    ref_j, thr_j = jnp.asarray(ref), jnp.asarray(thr, jnp.float32)
+    rows, cols = [], []
+    for s in range(0, n, c):
+        q = desc[s : s + c]
+        pad = c - q.shape[0]
+        if pad:
+            q = np.concatenate([q, np.repeat(q[-1:], pad, axis=0)])
+        near = np.array(near_fn(jnp.asarray(q), ref_j, thr_j))[: c - pad]
+        if reference_desc is None:
+            k = np.arange(near.shape[0])
+            near[k, s + k] = True
+        i, j = np.nonzero(near)
+        rows.append(i + s)
+        cols.append(j)
+    idx, mask = _left_packed(rows, cols, n)
+    if cache is not None:
+        cache.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(cache, idx=idx, mask=mask)
     return MMSets(jnp.asarray(idx), jnp.asarray(mask))
 
 
@@ -273,20 +386,26 @@ MM_BLOCK_ELEMS = 256_000
 
 
 def _mm_window(
-    pred: Float[Array, "k t d"], idx: Int[Array, " m"], mask: Bool[Array, " m"], futures: Float[Array, "r t d"]
+    pred: Float[Array, "k t d"], idx: Int[Array, " m"], mask: Bool[Array, " m"], futures: Float[Array, "r t d"],
+    target: Float[Array, " d"] | None = None, parents: tuple[int, ...] | None = None,
 ) -> tuple[Float[Array, ""], Float[Array, ""]]:
     # Per frame, ||p - f||^2 = |p|^2 + |f|^2 - 2 p.f: a block of set members costs one batched
     # matrix product (t_pred products of K x D by D x members) instead of K * members explicit
     # differences. Both sides are first taken relative to the window's first member (distances
     # do not change), so their norms are of the order of the distances and that member's own
     # terms are exact. The loop over member blocks stops at the window's last valid member, so
-    # cost follows its own set size rather than the global M.
+    # cost follows its own set size rather than the global M. With `parents`, every member's future
+    # is first motion-transferred onto the skeleton of `target` (MotionMap's evaluation).
+    def members(ib):
+        f = futures[ib]
+        return f if parents is None else motion_transfer(f, target, parents)
+
     k, t, _ = pred.shape
     m = idx.shape[0]
     block = min(m, max(8, MM_BLOCK_ELEMS // (k * t)))
     pad = -m % block
     idx, mask = jnp.pad(idx, (0, pad)), jnp.pad(mask, (0, pad))
-    centre = futures[idx[0]]  # (t, d)
+    centre = members(idx[:1])[0]  # (t, d)
     p = jnp.swapaxes(pred - centre, 0, 1)  # (t, K, d)
     pp = jnp.sum(p * p, axis=-1)[:, :, None]  # (t, K, 1)
     p = -2.0 * p  # exact (a power of two): the product below is then -2 p.f
@@ -296,7 +415,7 @@ def _mm_window(
         s_ade, s_fde = carry
         ib = lax.dynamic_slice_in_dim(idx, j * block, block)
         mb = lax.dynamic_slice_in_dim(mask, j * block, block)
-        f = jnp.swapaxes(futures[ib] - centre, 0, 1)  # (t, block, d)
+        f = jnp.swapaxes(members(ib) - centre, 0, 1)  # (t, block, d)
         ff = jnp.sum(f * f, axis=-1)[:, None, :]  # (t, 1, block)
         # A plain sqrt: the loop's data-dependent length rules out reverse-mode gradients anyway.
         d = jnp.sqrt(jnp.maximum(pp + ff + _gram(p, f), 0.0))  # (t, K, block)
@@ -315,13 +434,17 @@ def _mm_batch(
     idx: Int[Array, "b m"],
     mask: Bool[Array, "b m"],
     futures: Float[Array, "r t d"],
+    targets: Float[Array, "b d"] | None = None,
+    parents: tuple[int, ...] | None = None,
 ) -> tuple[Float[Array, " b"], Float[Array, " b"]]:
     # One window at a time (cache-sized operands, each its own number of member blocks).
-    return lax.map(lambda a: _mm_window(*a, futures), (pred, idx, mask))
+    if parents is None:
+        return lax.map(lambda a: _mm_window(*a, futures), (pred, idx, mask))
+    return lax.map(lambda a: _mm_window(*a[:3], futures, a[3], parents), (pred, idx, mask, targets))
 
 
-@partial(jax.jit, static_argnames="batch_size")
-def _mm_errors(pred, futures, idx, mask, batch_size):
+@partial(jax.jit, static_argnames=("batch_size", "parents"))
+def _mm_errors(pred, futures, idx, mask, batch_size, targets=None, parents=None):
     n = pred.shape[0]
     b = max(1, min(batch_size, n))
     pad = -n % b
@@ -330,8 +453,12 @@ def _mm_errors(pred, futures, idx, mask, batch_size):
         x = jnp.concatenate([x, jnp.zeros((pad,) + x.shape[1:], x.dtype)])
         return x.reshape((-1, b) + x.shape[1:])
 
-    xs = (batched(pred), batched(idx), batched(mask))
-    mm_ade, mm_fde = lax.map(lambda a: _mm_batch(*a, futures), xs)
+    if parents is None:
+        xs = (batched(pred), batched(idx), batched(mask))
+        mm_ade, mm_fde = lax.map(lambda a: _mm_batch(*a, futures), xs)
+    else:
+        xs = (batched(pred), batched(idx), batched(mask), batched(targets))
+        mm_ade, mm_fde = lax.map(lambda a: _mm_batch(*a[:3], futures, a[3], parents), xs)
     return mm_ade.reshape(-1)[:n], mm_fde.reshape(-1)[:n]
 
 
@@ -353,6 +480,29 @@ def mm_errors(
     """
     pred, futures, idx, mask = _check_mm("mm_errors", pred, futures, idx, mask)
     return _mm_errors(pred, futures, idx, mask, batch_size)
+
+
+@_checked
+def mm_errors_transferred(
+    pred: Float[ArrayLike, "n k t d"],
+    last_pose: Float[ArrayLike, "n d"],
+    futures: Float[ArrayLike, "r t d"],
+    idx: Int[ArrayLike, "n m"],
+    mask: Bool[ArrayLike, "n m"],
+    parents: tuple[int, ...],
+    *,
+    batch_size: int = 16,
+) -> tuple[Float[Array, " n"], Float[Array, " n"]]:
+    """Returns per-window `(MMADE, MMFDE)` with each MM future motion-transferred onto the window's skeleton first.
+
+    MotionMap's evaluation (PROTOCOL sec. 2, MotionMap option): `futures[idx[i, m]]` is moved onto
+    the skeleton of `last_pose[i]` before the min-over-K ADE / FDE term. NaN for an empty set. The
+    same blocked kernel as `mm_errors`.
+    """
+    pred, futures, idx, mask = _check_mm("mm_errors_transferred", pred, futures, idx, mask)
+    parents = tuple(int(q) for q in parents)
+    frame_parents(parents)
+    return _mm_errors(pred, futures, idx, mask, batch_size, jnp.asarray(last_pose, jnp.float32), parents)
 
 
 @_checked
@@ -415,11 +565,11 @@ def reduce_mm(
 # Streaming evaluation.
 
 
-@jax.jit
-def _chunk_metrics(pred, gt, futures, idx, mask):
+@partial(jax.jit, static_argnames="parents")
+def _chunk_metrics(pred, gt, futures, idx, mask, targets=None, parents=None):
     ade_k = _ade_terms(pred, gt)
     fde_k = _fde_terms(pred, gt)
-    mm_ade, mm_fde = _mm_batch(pred, idx, mask, futures)
+    mm_ade, mm_fde = _mm_batch(pred, idx, mask, futures, targets, parents)
     return {
         "APD": _apd(pred),
         "ADE": jnp.min(ade_k, axis=-1),
@@ -458,6 +608,8 @@ def window_metrics(
     mask: Bool[ArrayLike, "n m"],
     *,
     chunk_size: int = 32,
+    transfer_poses: Float[ArrayLike, "n d"] | None = None,
+    transfer_parents: tuple[int, ...] | None = None,
 ) -> dict[str, np.ndarray]:
     """Returns every per-window metric of PROTOCOL sec. 2 as `(N,)` numpy arrays, keyed as `METRIC_NAMES`.
 
@@ -467,9 +619,21 @@ def window_metrics(
     chunks of the first chunk's size (at most `chunk_size`), the last one padded, so the jitted
     kernel compiles once per (K, chunk size) and no time goes to padding when the pieces come in
     a fixed size.
+
+    With `transfer_parents` (the skeleton's parents, root first) and `transfer_poses` (each window's
+    last observed pose), every MM future is motion-transferred onto the window's skeleton before
+    MMADE / MMFDE (MotionMap's evaluation, PROTOCOL sec. 2 option; `motion_transfer`).
     """
     fn = "window_metrics"
     _check_finite(fn, "gt", gt)
+    if (transfer_poses is None) != (transfer_parents is None):
+        raise ValueError(f"{fn}: give both `transfer_poses` and `transfer_parents`, or neither")
+    if transfer_parents is not None:
+        transfer_parents = tuple(int(q) for q in transfer_parents)
+        frame_parents(transfer_parents)
+        transfer_poses = np.asarray(transfer_poses, np.float32)
+        _check_finite(fn, "transfer_poses", transfer_poses)
+        _check_same(fn, "number of windows", "transfer_poses", transfer_poses.shape[0], "gt", np.shape(gt)[0])
     _check_finite(fn, "futures", futures)
     _check_idx(fn, idx, mask, futures.shape[0])
     gt = np.asarray(gt, np.float32)
@@ -493,10 +657,14 @@ def window_metrics(
         sl = slice(start, start + c)
         pad = size - c
         args = [np.asarray(chunk, np.float32), gt[sl], idx[sl], mask[sl]]
+        if transfer_parents is not None:
+            args.append(transfer_poses[sl])
         if pad:
             args = [np.concatenate([a, np.zeros((pad,) + a.shape[1:], a.dtype)]) for a in args]
-        p, g, i, m = args
-        res = _chunk_metrics(jnp.asarray(p), jnp.asarray(g), futures, jnp.asarray(i), jnp.asarray(m))
+        p, g, i, m = args[:4]
+        targets = jnp.asarray(args[4]) if transfer_parents is not None else None
+        res = _chunk_metrics(jnp.asarray(p), jnp.asarray(g), futures, jnp.asarray(i), jnp.asarray(m), targets,
+                             transfer_parents)
         for key in METRIC_NAMES:
             out[key][sl] = np.asarray(res[key])[:c]
         start += c
@@ -516,6 +684,8 @@ def evaluate_windows(
     reference_futures: Float[ArrayLike, "r t d"] | None = None,
     mm_deviation: MMDeviation = None,
     chunk_size: int = 32,
+    transfer_poses: Float[ArrayLike, "n d"] | None = None,
+    transfer_parents: tuple[int, ...] | None = None,
 ) -> dict[str, float]:
     """Returns APD, ADE, FDE, MMADE, MMFDE, ADE-m, FDE-m averaged over windows, plus MM statistics (PROTOCOL sec. 2).
 
@@ -523,7 +693,8 @@ def evaluate_windows(
     sets are built with `multimodal_gt`) or precomputed `MMSets`. MM futures are the test ground
     truth `gt` unless `reference_futures` is given (with `reference_last_poses` when `mm` is poses),
     e.g. training windows for MotionMap comparisons. `pred` may be an iterable of window chunks;
-    see `window_metrics`.
+    see `window_metrics` (also for `transfer_poses` / `transfer_parents`: MotionMap's motion-transferred
+    MM futures, with `mm` then the `MMSets` of `motionmap_mm_sets`).
 
     `mm_deviation` reproduces published code (see `reduce_mm`). `"comusion"` drops windows whose
     only member is themselves from MMADE/MMFDE. `"divsamp"` is DivSamp's release (`mm` must be the
@@ -571,7 +742,8 @@ def evaluate_windows(
         used = mask & ~dup
         n_others = (used & ~is_self).sum(axis=1)
 
-    per = window_metrics(pred, gt, futures, sets.idx, used, chunk_size=chunk_size)
+    per = window_metrics(pred, gt, futures, sets.idx, used, chunk_size=chunk_size, transfer_poses=transfer_poses,
+                         transfer_parents=transfer_parents)
     out = {k: float(np.mean(per[k], dtype=np.float64)) for k in METRIC_NAMES if not k.startswith("MM")}
     if mm_deviation == "divsamp":
         keep = n_others > 0

@@ -4,10 +4,11 @@
 
 `read_motion` reads a BVH clip (forward kinematics, units guessed as `formats.bvh.guess_scale` does
 unless `scale` is given) or an npz of joint positions (`positions` (T, J, 3), optional `names`,
-`fps`, `scale` (metres per unit, default 1), `up_axis`). `to_layout` matches joints by name (an error
-lists the missing and the extra joints), converts to metres, turns the up axis onto the model's,
-resamples a different frame rate by linear interpolation of joint positions and makes frames
-root-relative with the root dropped. `predict_file` writes `futures.npz`, one BVH per future on the
+`fps`, `scale` (metres per unit, default 1), `up_axis`), or a C3D marker file (labels without
+the `Subject:` prefix, metres, NaN at gaps: a marker model's input, `predict_markers`). `to_layout`
+matches joints by name (an error lists the missing and the extra joints), converts to metres,
+turns the up axis onto the model's, resamples a different frame rate by linear interpolation of
+joint positions and makes frames root-relative with the root dropped. `predict_file` writes `futures.npz`, one BVH per future on the
 input's own skeleton (`retarget.fit_bvh`: the observed frames, then the future, the root held at
 its last observed place since the models predict root-relative motion) and `samples.gif`.
 """
@@ -23,6 +24,9 @@ import numpy as np
 from jaxmotion.errors import DataError
 from jaxmotion.formats.bvh import Bvh, forward_kinematics, guess_scale, read_bvh
 from jaxmotion.formats.bvh_write import read_end_sites, write_bvh
+from jaxmotion.data.windows import resample  # noqa: F401 (also part of this module's interface)
+from jaxmotion.formats.c3d import read_c3d
+from jaxmotion.predict_markers import predict_markers
 from jaxmotion.predictor import MotionPredictor
 from jaxmotion.retarget import bvh_from_positions, fit_bvh
 
@@ -51,6 +55,10 @@ def read_motion(path: str | Path, scale: float | None = None) -> Motion:
         s = guess_scale(bvh) if scale is None else scale
         notes = [f"units: {s:g} m per file unit ({'guessed from the skeleton' if scale is None else '--scale'})"]
         return Motion(path, bvh.names, forward_kinematics(bvh) * s, bvh.fps, s, 1, bvh, notes)
+    if path.suffix.lower() == ".c3d":  # markers, NaN at gaps, for marker models (`predict_markers`)
+        rec = read_c3d(path)
+        s = {"mm": 1e-3, "cm": 1e-2, "dm": 0.1, "m": 1.0}[rec.units]
+        return Motion(path, rec.labels, rec.points.astype(np.float64), rec.rate, s, None, None, [f"units: {rec.units} (POINT:UNITS)"])
     if path.suffix.lower() == ".npz":
         try:
             z = dict(np.load(path, allow_pickle=False))
@@ -68,7 +76,7 @@ def read_motion(path: str | Path, scale: float | None = None) -> Motion:
         fps = float(z["fps"]) if "fps" in z else None
         up = int(z["up_axis"]) if "up_axis" in z else None
         return Motion(path, names, pos * s, fps, s, up, None, [f"units: {s:g} m per unit"])
-    raise DataError(path, "expected a .bvh clip or an .npz of joint positions")
+    raise DataError(path, "expected a .bvh clip, an .npz of joint positions or a .c3d marker file")
 
 
 def match_joints(motion: Motion, joints: list[str]) -> np.ndarray:
@@ -93,15 +101,6 @@ def match_joints(motion: Motion, joints: list[str]) -> np.ndarray:
     return np.array([motion.names.index(n) for n in joints])
 
 
-def resample(positions: np.ndarray, fps_in: float, fps_out: float) -> np.ndarray:
-    """Returns `(T', ...)` positions at `fps_out` by linear interpolation in time over the same span (frame 0 kept)."""
-    t_in = np.arange(positions.shape[0]) / fps_in
-    t_out = np.arange(0.0, t_in[-1] + 1e-9, 1.0 / fps_out)
-    flat = positions.reshape(positions.shape[0], -1)
-    out = np.stack([np.interp(t_out, t_in, flat[:, c]) for c in range(flat.shape[1])], axis=1)
-    return out.reshape((len(t_out),) + positions.shape[1:])
-
-
 def _roll(p: np.ndarray, shift: int) -> np.ndarray:
     return np.roll(p, shift, axis=-1)  # a cyclic permutation of x, y, z: a proper rotation
 
@@ -116,8 +115,10 @@ def predict_file(
     ground truth), or the clip's last frame when it is shorter than `t_his + t_pred`.
     """
     lay = model.layout
+    if lay["frames"] == "global":  # a marker model (MOJO on markers): labels, gaps, canonical frame
+        return predict_markers(model, read_motion(path, scale), out, frame=frame, k=k, method=method, seed=seed, gif=gif)
     if lay["frames"] != "root_relative":
-        raise DataError(path, f"the model predicts {lay['frames']} marker frames; predict from a file supports joint models")
+        raise DataError(path, f"the model predicts {lay['frames']} frames; predict from a file supports joint and marker models")
     motion = read_motion(path, scale)
     idx = match_joints(motion, lay["joints"])
     pos = motion.positions

@@ -16,16 +16,6 @@ from jaxmotion.train.runner import CheckpointMismatch
 
 REPO = Path(__file__).resolve().parents[1]
 
-TINY = """
-from jaxmotion.config import Config
-from jaxmotion.models.dlow import CVAEConfig, DLowConfig, QConfig
-def get_config():
-    return Config(name="tiny", method_config=DLowConfig(
-                      cvae=CVAEConfig(num_steps=30, batch_size=16, nz=16, nh_rnn=32, nh_mlp=(32,)),
-                      q=QConfig(num_steps=10, batch_size=4, nh_mlp=(32,))),
-                  eval_k=(6, 2), ckpt_every=10, log_every=10, max_test_windows=40, eval_batch=16)
-"""
-
 TINY_MOJO = """
 from jaxmotion.config import Config
 from jaxmotion.models.mojo import MojoConfig
@@ -49,12 +39,9 @@ def _assert_trees_equal(a, b):
 
 
 @pytest.fixture(scope="module")
-def run_dir(tmp_path_factory):
-    d = tmp_path_factory.mktemp("cli")
-    cfg = d / "tiny.py"
-    cfg.write_text(TINY)
-    assert main(["run", "--config", str(cfg), "--workdir", str(d / "work")]) == 0
-    return cfg, d / "work"
+def run_dir(tiny_cli_run):
+    """`jaxmotion run` with the TINY config (tests/conftest.py): trained once per session, shared with tests/test_viewer.py."""
+    return tiny_cli_run
 
 
 @pytest.mark.slow

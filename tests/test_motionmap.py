@@ -124,7 +124,9 @@ def test_mm_errors_transferred_equals_plain_errors_on_one_skeleton():
     pred = jnp.asarray(futures[None, :2].repeat(3, 0))
     idx, mask = jnp.array([[0, 1], [2, 3], [4, 0]]), jnp.array([[True, True], [True, False], [True, False]])
     a, f = mm.mm_errors_transferred(pred, jnp.asarray(pose), jnp.asarray(y), idx, mask, PARENTS)
-    assert float(a[0]) == pytest.approx(0.0, abs=1e-5) and float(f[0]) == pytest.approx(0.0, abs=1e-5)
+    # The blocked Gram kernel (metrics._mm_window) rounds a zero distance to about sqrt(eps) * |x|
+    # (|x| ~ 10 for these random chained links), so "zero" is zero to 5e-3 here.
+    assert float(a[0]) == pytest.approx(0.0, abs=5e-3) and float(f[0]) == pytest.approx(0.0, abs=5e-3)
     d = np.linalg.norm(futures[None, :2] - futures[2][None, None], axis=-1)
     assert float(a[1]) == pytest.approx(d.mean(-1).min(), rel=1e-4)
 

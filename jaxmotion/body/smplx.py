@@ -1,4 +1,4 @@
-"""SMPL-X from a user-supplied model `.npz`, evaluated at marker vertices only (MOJO's parameterisation).
+"""SMPL-X (or SMPL-H) from a user-supplied model `.npz`, evaluated at marker vertices only (MOJO's parameterisation).
 
     body = load_smplx("SMPLX_NEUTRAL.npz", marker_vertices={"C7": 3832, ...})
     body.markers(body.zero_params())   # (M, 3): linear blend skinning of the M marker vertices
@@ -10,6 +10,11 @@ shape blend shapes (`J = J_reg v_template + (J_reg S) beta`), so no step of a fi
 10,475-vertex mesh. Parameters (`BodyParams`): `transl`, `orient` (6-D global rotation, as MOJO),
 `shape` (betas), `pose` (21 body joints, axis-angle, 63), `hand` (PCA coefficients of both hands,
 `2 * num_pca_comps`, or 90 axis-angle values when `num_pca_comps=0`); jaw and eyes stay at zero.
+
+An SMPL-H model npz (52 joints: the same pelvis and 21 body joints, then 15 + 15 hand joints, no
+jaw or eyes; the body model of AMASS's SMPL-H files) loads the same way (`SmplxBody.num_joints`
+says which); MANO's SMPL-H npz has no hand PCA, so load it with `num_pca_comps=0`. An empty
+`marker_vertices` gives a joints-only body.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ from jaxmotion.body.rotation import axis_angle_to_matrix, rot6d_to_matrix
 from jaxmotion.body.skeleton import forward_kinematics
 
 NUM_JOINTS = 55  # pelvis, 21 body, jaw, 2 eyes, 15 + 15 hand joints
+SMPLH_NUM_JOINTS = 52  # pelvis, 21 body, 15 + 15 hand joints
 NUM_BODY_JOINTS = 21
 REQUIRED_KEYS = ("v_template", "shapedirs", "posedirs", "J_regressor", "weights", "kintree_table")
 
@@ -47,6 +53,7 @@ class SmplxBody:
     marker_names: tuple[str, ...] = struct.field(pytree_node=False)
     marker_vertices: tuple[int, ...] = struct.field(pytree_node=False)
     use_pca: bool = struct.field(pytree_node=False, default=True)
+    num_joints: int = struct.field(pytree_node=False, default=NUM_JOINTS)  # 55 SMPL-X, 52 SMPL-H
 
     @property
     def num_betas(self) -> int:
@@ -67,7 +74,8 @@ class SmplxBody:
             hands = jnp.einsum("sc,scd->sd", hands, self.hand_components) + self.hand_mean
         else:
             hands = params.hand.reshape(2, 45)
-        aa = jnp.concatenate([params.pose.reshape(-1, 3), jnp.zeros((3, 3), params.pose.dtype), hands.reshape(-1, 3)])
+        face = jnp.zeros((3 if self.num_joints == NUM_JOINTS else 0, 3), params.pose.dtype)  # SMPL-X jaw, eyes
+        aa = jnp.concatenate([params.pose.reshape(-1, 3), face, hands.reshape(-1, 3)])
         return jnp.concatenate([rot6d_to_matrix(params.orient)[None], axis_angle_to_matrix(aa)])
 
     def _skin(self, params: BodyParams):
@@ -79,7 +87,7 @@ class SmplxBody:
         return rot, j_rest, g_r, g_t
 
     def joints(self, params: BodyParams) -> Float[Array, "j 3"]:
-        """Returns the 55 posed joints (SMPL-X order), translated."""
+        """Returns the 55 (SMPL-X) or 52 (SMPL-H) posed joints in the model's order, translated."""
         return self._skin(params)[3] + params.transl
 
     def markers(self, params: BodyParams) -> Float[Array, "m 3"]:
@@ -103,14 +111,15 @@ def load_smplx(
     num_pca_comps: int = 12,
     flat_hand_mean: bool = False,
 ) -> SmplxBody:
-    """Returns SMPL-X from an official model npz, with markers at the given `{name: vertex}` ids.
+    """Returns SMPL-X (55 joints) or SMPL-H (52) from an official model npz, markers at `{name: vertex}` ids.
 
-    `num_pca_comps=0` uses full axis-angle hands (no PCA). Raises FileNotFoundError / ValueError
-    naming the file and the key when the file is missing, a key is missing or shapes disagree.
+    `num_pca_comps=0` uses full axis-angle hands (no PCA); `marker_vertices={}` gives joints only.
+    Raises FileNotFoundError / ValueError naming the file and the key when the file is missing, a
+    key is missing or shapes disagree.
     """
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"{path}: SMPL-X model file not found")
+        raise FileNotFoundError(f"{path}: SMPL-X / SMPL-H model file not found")
     try:
         npz = np.load(path, allow_pickle=True)
         data = {k: npz[k] for k in npz.files}
@@ -125,25 +134,29 @@ def load_smplx(
     v_t = np.asarray(data["v_template"], np.float64)
     n_v = v_t.shape[0]
     kin = np.asarray(data["kintree_table"]).astype(np.int64)
+    n_j = kin.shape[1] if kin.ndim == 2 else -1
+    if n_j not in (NUM_JOINTS, SMPLH_NUM_JOINTS):
+        raise ValueError(
+            f"{path}: kintree_table has shape {kin.shape}, expected (2, {NUM_JOINTS}) (SMPL-X) or (2, {SMPLH_NUM_JOINTS}) (SMPL-H)"
+        )
     checks = {
         "v_template": (v_t.shape, (n_v, 3)),
         "shapedirs": (data["shapedirs"].shape[:2], (n_v, 3)),
-        "posedirs": (data["posedirs"].shape, (n_v, 3, 9 * (NUM_JOINTS - 1))),
-        "J_regressor": (jreg.shape, (NUM_JOINTS, n_v)),
-        "weights": (data["weights"].shape, (n_v, NUM_JOINTS)),
-        "kintree_table": (kin.shape, (2, NUM_JOINTS)),
+        "posedirs": (data["posedirs"].shape, (n_v, 3, 9 * (n_j - 1))),
+        "J_regressor": (jreg.shape, (n_j, n_v)),
+        "weights": (data["weights"].shape, (n_v, n_j)),
     }
     for key, (got, want) in checks.items():
         if tuple(got) != tuple(want):
             raise ValueError(f"{path}: {key} has shape {tuple(got)}, expected {tuple(want)}")
     if data["shapedirs"].shape[2] < num_betas:
         raise ValueError(f"{path}: shapedirs has {data['shapedirs'].shape[2]} components, num_betas={num_betas}")
-    parents = tuple(int(p) if 0 <= p < NUM_JOINTS else -1 for p in kin[0])
+    parents = tuple(int(p) if 0 <= p < n_j else -1 for p in kin[0])
     if parents[0] != -1 or any(p >= j for j, p in enumerate(parents) if j > 0):
         raise ValueError(f"{path}: kintree_table is not a tree listed parents-first")
     names = tuple(marker_vertices)
     ids = np.array([marker_vertices[n] for n in names], np.int64)
-    if len(ids) == 0 or ids.min() < 0 or ids.max() >= n_v:
+    if len(ids) and (ids.min() < 0 or ids.max() >= n_v):
         raise ValueError(f"marker_vertices: ids must be in [0, {n_v}) for {path}, got {ids.tolist()}")
     use_pca = num_pca_comps > 0
     if use_pca:
@@ -172,4 +185,5 @@ def load_smplx(
         marker_names=names,
         marker_vertices=tuple(int(i) for i in ids),
         use_pca=use_pca,
+        num_joints=n_j,
     )

@@ -492,7 +492,13 @@ def load_dataset(spec: str | os.PathLike, **options) -> MotionDataset:
     - a folder with `bandai2_dev.tar.xz` or `dataset-2_*.bvh` clips: `load_bandai`; with the option
       `markers="bandai"` (a marker set name), `jaxmotion.data.markers.load_bandai_markers`.
     - another folder with `.bvh` files: `load_bvh_folder`.
+    - `amass:<root>`, or a folder of AMASS sub-dataset folders (`ACCAD/`, `CMU/`, ... holding
+      `*_poses.npz`): `jaxmotion.data.amass.load_amass` (options `protocol`, `model_path`, ...).
     """
+    if str(spec).startswith("amass:"):
+        from jaxmotion.data.amass import load_amass  # jax and the body models: only AMASS needs them
+
+        return load_amass(str(spec).removeprefix("amass:"), **options)
     path = Path(spec).expanduser()
     if path.suffix == ".npz":
         if options:
@@ -519,7 +525,11 @@ def load_dataset(spec: str | os.PathLike, **options) -> MotionDataset:
             return load_bandai(path, **options)
         if any(path.rglob("*.bvh")):
             return load_bvh_folder(path, **options)
-        raise DataError(path, f"folder has neither {BANDAI_TARBALL} nor .bvh files")
+        from jaxmotion.data import amass
+
+        if amass.is_amass_root(path):
+            return amass.load_amass(path, **options)
+        raise DataError(path, f"folder has neither {BANDAI_TARBALL}, .bvh files nor AMASS sub-dataset folders")
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such file or folder")
     raise DataError(path, "expected a .npz file or a folder of BVH files")

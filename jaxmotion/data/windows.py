@@ -137,3 +137,12 @@ def split_frames(ds, split: str) -> tuple[list[np.ndarray], list[np.ndarray] | N
 # These are library functions, not tests: keep pytest from collecting them where they are imported.
 test_starts.__test__ = False
 test_windows.__test__ = False
+
+
+def resample(positions: np.ndarray, fps_in: float, fps_out: float) -> np.ndarray:
+    """Returns `(T', ...)` positions at `fps_out` by linear interpolation in time over the same span (frame 0 kept)."""
+    t_in = np.arange(positions.shape[0]) / fps_in
+    t_out = np.arange(0.0, t_in[-1] + 1e-9, 1.0 / fps_out)
+    flat = positions.reshape(positions.shape[0], -1)
+    out = np.stack([np.interp(t_out, t_in, flat[:, c]) for c in range(flat.shape[1])], axis=1)
+    return out.reshape((len(t_out),) + positions.shape[1:])

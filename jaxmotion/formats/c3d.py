@@ -7,10 +7,21 @@
 
 A small reader of the public C3D format (c3d.org, "The C3D File Format User Guide"), with no
 dependency: a 512-byte header, a parameter section of groups and typed parameters (POINT:LABELS,
-POINT:UNITS, POINT:RATE, POINT:SCALE, POINT:DATA_START, POINT:FRAMES), then per frame 4 words per
-point (x, y, z and a residual word, negative for an invalid point) and the analog samples, as
-float32 when POINT:SCALE < 0, else int16 times the scale. Intel, DEC and MIPS processor types.
-Only points are read; analog channels are skipped. Tested on Vicon Intel-float files.
+LABELS2..., POINT:UNITS, POINT:RATE, POINT:SCALE, POINT:DATA_START, POINT:FRAMES), then per frame 4
+words per point (x, y, z and a residual word, negative for an invalid point) and the analog samples,
+as float32 when POINT:SCALE < 0, else int16 times the scale. Intel, DEC and MIPS processor types.
+Trials past 65,535 frames: POINT:LONG_FRAMES, else TRIAL:ACTUAL_START_FIELD / ACTUAL_END_FIELD
+(two 16-bit words each) when POINT:FRAMES is saturated, else POINT:FRAMES stored as a float.
+Only points are read; analog channels are skipped.
+
+Checked against ezc3d 1.7.2 (`tests/test_c3d_ezc3d.py`): same labels, rate, units, gaps and points
+(max difference 1.4e-7 m, float32 rounding) on the Vicon files of `../shared/data/vicon-c3d`, on
+files ezc3d writes (300 points through POINT:LABELS2, analog channels) and on integer and DEC
+files. It is kept over ezc3d because ezc3d reads a truncated file as a shorter trial without an
+error, accepts a negative rate or a NaN scale, crashes the Python process (SIGSEGV) on a parameter
+with huge dimensions and no data, refuses POINT:FRAMES stored as a float and MIPS files, and reads
+only 65,535 frames of a longer trial even with the TRIAL fields; this reader raises `DataError`
+or reads them.
 """
 
 from __future__ import annotations
@@ -137,6 +148,23 @@ def _number(path: Path, params: _Params, key: str, default) -> float:
     return v
 
 
+def _frame_count(path: Path, params: _Params, hdr: np.ndarray) -> int:
+    """Returns the trial's frame count: POINT:LONG_FRAMES, TRIAL fields past 65,535, POINT:FRAMES, the header."""
+    if "POINT:LONG_FRAMES" in params:
+        return int(_number(path, params, "POINT:LONG_FRAMES", 0))
+    frames = (int(hdr[4]) & 0xFFFF) - (int(hdr[3]) & 0xFFFF) + 1
+    if "POINT:FRAMES" in params:  # the header's 16-bit frame numbers overflow on long trials
+        pf = int(_number(path, params, "POINT:FRAMES", 0))
+        frames = pf if pf >= 0 else pf + 65536
+    start, end = params.get("TRIAL:ACTUAL_START_FIELD"), params.get("TRIAL:ACTUAL_END_FIELD")
+    if frames == 65535 and all(isinstance(v, np.ndarray) and v.dtype == np.int16 and v.size == 2 for v in (start, end)):
+        # Each field is a 32-bit frame number in two unsigned 16-bit words, low word first (Vicon).
+        first, last = (int(v[0].item() & 0xFFFF) | int(v[1].item() & 0xFFFF) << 16 for v in (start, end))
+        if last - first + 1 > 65535:
+            frames = last - first + 1
+    return frames
+
+
 def read_c3d(path: str | os.PathLike) -> C3D:
     """Returns the labelled points of the C3D file at `path`, in metres, gaps as NaN and `mask` False.
 
@@ -168,11 +196,7 @@ def read_c3d(path: str | os.PathLike) -> C3D:
     analog_words = int(hdr[2])
     if analog_words < 0:
         raise DataError(path, f"header says {analog_words} analog words per frame")
-    first, last = int(hdr[3]) & 0xFFFF, int(hdr[4]) & 0xFFFF
-    frames = last - first + 1
-    if "POINT:FRAMES" in params:  # the header's 16-bit frame numbers overflow on long trials
-        pf = int(_number(path, params, "POINT:FRAMES", 0))
-        frames = pf if pf >= 0 else pf + 65536
+    frames = _frame_count(path, params, hdr)
     scale = _number(path, params, "POINT:SCALE", np.frombuffer(buf, endian + "f4", 1, 12)[0])
     if scale == 0:
         raise DataError(path, "POINT:SCALE is 0 (every point would be at the origin)")
@@ -183,6 +207,8 @@ def read_c3d(path: str | os.PathLike) -> C3D:
     if dstart < 0:
         dstart += 65536
     units = params.get("POINT:UNITS", "mm")
+    if isinstance(units, list):  # a 2-D char array (ezc3d writes ["mm"]; an empty one when never set)
+        units = next((u for u in units if u), "")
     units = (units.strip().lower() or "mm") if isinstance(units, str) else repr(units)
     if units not in _UNIT_TO_METRES:
         raise DataError(path, f"unknown POINT:UNITS {units!r} (known: {sorted(_UNIT_TO_METRES)})")

@@ -31,8 +31,6 @@ a link whose parent is the root starts at the origin.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
-from pathlib import Path
 from typing import NamedTuple
 
 import flax.linen as nn
@@ -42,7 +40,7 @@ import numpy as np
 from jax import lax
 from jaxtyping import Array, Bool, Float, Int, Shaped
 
-from jaxmotion.metrics import MMSets
+from jaxmotion.metrics import MMSets, frame_parents, mm_errors_transferred, motion_transfer, motionmap_mm_sets  # noqa: F401 (re-exported)
 from jaxmotion.nn.gru import GRU, GRUCell, gru_update
 from jaxmotion.nn.linear import DENSE_INITS, Dense, initializers
 from jaxmotion.nn.mlp import MLP
@@ -94,142 +92,9 @@ class MotionMapConfig:
             raise ValueError(f"MotionMapConfig.dense_init must be one of {DENSE_INITS}, got {self.dense_init!r}")
 
 
-# --------------------------------------------------------------------------------------------
-# Motion transfer and MotionMap's multimodal ground truth (appendix A).
-
-
-def frame_parents(parents: tuple[int, ...]) -> tuple[int, ...]:
-    """Returns the parent of every frame joint (skeleton joint j + 1), -1 where the parent is the dropped root."""
-    parents = tuple(int(p) for p in parents)
-    if parents[0] != -1 or any(not 0 <= p < j for j, p in enumerate(parents) if j):
-        raise ValueError(f"motion transfer needs joint 0 as the root and every parent before its child, got parents {parents}")
-    return tuple(p - 1 for p in parents[1:])
-
-
-def motion_transfer(
-    source: Float[Array, "*s d"], target: Float[Array, "*t d"], parents: tuple[int, ...]
-) -> Float[Array, "*o d"]:
-    """Returns `source`'s motion on `target`'s skeleton (MotionMap appendix A), broadcast over leading axes.
-
-    Every link keeps the direction it has in `source` (its spherical angles) and takes the length it
-    has in `target`; joints are rebuilt parent to child from the root at the origin. `parents` is
-    the skeleton's (root first, dropped from the frame vectors).
-    """
-    fp = frame_parents(parents)
-    src = source.reshape(source.shape[:-1] + (-1, 3))
-    tgt = target.reshape(target.shape[:-1] + (-1, 3))
-    shape = jnp.broadcast_shapes(src.shape[:-2], tgt.shape[:-2]) + (3,)
-    zero = jnp.zeros((), source.dtype)
-    out: list = []
-    for j, p in enumerate(fp):
-        v_src = src[..., j, :] - (src[..., p, :] if p >= 0 else zero)
-        v_tgt = tgt[..., j, :] - (tgt[..., p, :] if p >= 0 else zero)
-        norm = jnp.linalg.norm(v_src, axis=-1, keepdims=True)
-        direction = v_src / jnp.maximum(norm, 1e-12)
-        length = jnp.linalg.norm(v_tgt, axis=-1, keepdims=True)
-        base = out[p] if p >= 0 else jnp.zeros(shape, source.dtype)
-        out.append(jnp.broadcast_to(base + length * direction, shape))
-    return jnp.stack(out, axis=-2).reshape(shape[:-1] + (-1,))
-
-
-def _near_fn(parents: tuple[int, ...]):
-    @jax.jit
-    def near(desc_q: Float[Array, "c f d"], desc_ref: Float[Array, "r f d"], thr: Float[Array, ""]) -> Bool[Array, "c r"]:
-        # Every reference descriptor onto each query's skeleton (its last observed frame).
-        moved = motion_transfer(desc_ref[None], desc_q[:, None, -1:], parents)  # (c, r, f, d)
-        diff = moved.reshape(moved.shape[:2] + (-1,)) - desc_q.reshape(desc_q.shape[0], 1, -1)
-        return jnp.sqrt(jnp.sum(diff**2, axis=-1)) < thr
-
-    return near
-
-
-def motionmap_mm_sets(
-    desc: Float[np.ndarray, "n f d"],
-    thr: float,
-    parents: tuple[int, ...],
-    *,
-    reference_desc: Float[np.ndarray, "r f d"] | None = None,
-    max_chunk_elems: int = 4_000_000,
-    cache_dir: str | Path | None = None,
-) -> MMSets:
-    """Returns left-packed `MMSets` of MotionMap's multimodal ground truth (appendix A; PROTOCOL sec. 2 option).
-
-    `desc[i]` is window i's descriptor (its last three observed frames). Candidate j is a member of
-    MM(i) when `||vec(transfer(desc_j -> skeleton of i)) - vec(desc_i)|| < thr`, the skeleton of i
-    being its last observed frame. Candidates are the windows themselves (i is always a member of
-    its own set) or `reference_desc` (e.g. training windows, MotionMap Tables 1-2). Chunked over
-    query windows (about `max_chunk_elems` numbers per chunk); with `cache_dir` the sets are stored
-    in a file keyed by the data, the threshold and the skeleton.
-    """
-    desc = np.asarray(desc, np.float32)
-    if not np.all(np.isfinite(desc)):
-        raise ValueError("motionmap_mm_sets: `desc` contains NaN or inf")
-    if not np.isfinite(thr) or thr <= 0:
-        raise ValueError(f"motionmap_mm_sets: `thr` must be a positive distance, got {thr}")
-    ref = desc if reference_desc is None else np.asarray(reference_desc, np.float32)
-    cache = None
-    if cache_dir is not None:
-        h = hashlib.sha1(desc.tobytes())
-        h.update(ref.tobytes() if reference_desc is not None else b"self")
-        h.update(repr((float(thr), tuple(parents), desc.shape, ref.shape)).encode())
-        cache = Path(cache_dir) / f"motionmap_mm_{h.hexdigest()[:20]}.npz"
-        if cache.exists():
-            z = np.load(cache)
-            return MMSets(jnp.asarray(z["idx"]), jnp.asarray(z["mask"]))
-    near_fn = _near_fn(tuple(parents))
-    n, r = desc.shape[0], ref.shape[0]
-    c = int(max(1, min(n, max_chunk_elems // max(1, r * desc.shape[1] * desc.shape[2]))))
-    ref_j, thr_j = jnp.asarray(ref), jnp.asarray(thr, jnp.float32)
-    rows, cols = [], []
-    for s in range(0, n, c):
-        q = desc[s : s + c]
-        pad = c - q.shape[0]
-        if pad:
-            q = np.concatenate([q, np.repeat(q[-1:], pad, axis=0)])
-        near = np.array(near_fn(jnp.asarray(q), ref_j, thr_j))[: c - pad]
-        if reference_desc is None:
-            k = np.arange(near.shape[0])
-            near[k, s + k] = True
-        i, j = np.nonzero(near)
-        rows.append(i + s)
-        cols.append(j)
-    rows, cols = np.concatenate(rows), np.concatenate(cols)
-    counts = np.bincount(rows, minlength=n)
-    m = max(1, int(counts.max(initial=0)))
-    pos = np.arange(rows.size) - np.repeat(np.cumsum(counts) - counts, counts)
-    idx, mask = np.zeros((n, m), np.int32), np.zeros((n, m), bool)
-    idx[rows, pos], mask[rows, pos] = cols, True
-    if cache is not None:
-        cache.parent.mkdir(parents=True, exist_ok=True)
-        np.savez(cache, idx=idx, mask=mask)
-    return MMSets(jnp.asarray(idx), jnp.asarray(mask))
-
-
-def mm_errors_transferred(
-    pred: Float[Array, "n k t d"],
-    last_pose: Float[Array, "n d"],
-    futures: Float[Array, "r t d"],
-    idx: Int[Array, "n m"],
-    mask: Bool[Array, "n m"],
-    parents: tuple[int, ...],
-) -> tuple[Float[Array, " n"], Float[Array, " n"]]:
-    """Returns per-window `(MMADE, MMFDE)` with each MM future motion-transferred onto the window's skeleton first.
-
-    MotionMap's evaluation (PROTOCOL sec. 2, MotionMap option): `futures[idx[i, m]]` is moved onto
-    the skeleton of `last_pose[i]` before the min-over-K ADE / FDE term. NaN for an empty set.
-    """
-
-    def one(p, pose, ix, mk):
-        def member(m):
-            f = motion_transfer(futures[ix[m]], pose, parents)
-            d = jnp.sqrt(jnp.sum((p - f[None]) ** 2, axis=-1))  # (k, t)
-            return jnp.min(jnp.mean(d, -1)), jnp.min(d[:, -1])
-
-        a, f = lax.map(member, jnp.arange(ix.shape[0]))
-        cnt = jnp.sum(mk)
-        return jnp.sum(jnp.where(mk, a, 0.0)) / cnt, jnp.sum(jnp.where(mk, f, 0.0)) / cnt
-
-    return jax.vmap(one)(pred, last_pose, idx, mask)
+# Motion transfer and MotionMap's multimodal ground truth (appendix A) are evaluation as much as
+# training: they live in `jaxmotion.metrics` (`motion_transfer`, `motionmap_mm_sets`) and are
+# re-exported here.
 
 
 # --------------------------------------------------------------------------------------------
