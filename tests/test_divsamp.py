@@ -9,6 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+# CMD and FID are off in this file's configs (`action_metrics=False`): tests/test_action_metrics.py covers them.
 from jaxmotion import losses
 from jaxmotion.cli import main
 from jaxmotion.models import divsamp
@@ -183,7 +184,7 @@ TINY = """
 from jaxmotion.config import Config
 from jaxmotion.models.divsamp import DivSampConfig
 def get_config():
-    return Config(name="tiny_divsamp", method="divsamp", eval_k=(4,), ckpt_every=2, log_every=2, max_test_windows=12,
+    return Config(name="tiny_divsamp", action_metrics=False, method="divsamp", eval_k=(4,), ckpt_every=2, log_every=2, max_test_windows=12,
                   eval_batch=12, method_config=DivSampConfig(hidden=16, nz=8, cvae_residual=1, sampler_residual=0, num_bases=4,
                   base_dim=8, nh=8, cvae_num_steps=4, cvae_batch_size=8, num_steps=NSTEPS, batch_size=4, nk=4,
                   lr_fix_fraction=1.0))

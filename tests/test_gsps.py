@@ -8,6 +8,7 @@ import numpy as np
 import optax
 import pytest
 
+# CMD and FID are off in this file's configs (`action_metrics=False`): tests/test_action_metrics.py covers them.
 from jaxmotion.data.synthetic import SKELETON, make_synthetic
 from jaxmotion.data.windows import sequence_frames
 from jaxmotion.models import gsps
@@ -266,7 +267,7 @@ from jaxmotion.models.gsps import GSPSConfig
 
 
 def get_config():
-    return Config(name="tiny", method="gsps", eval_k=(3,), max_test_windows=4, ckpt_every=2, log_every=1,
+    return Config(name="tiny", method="gsps", action_metrics=False, eval_k=(3,), max_test_windows=4, ckpt_every=2, log_every=1,
                   method_config=GSPSConfig(prior_batch_size=32, prior_num_steps=2, hidden=8, num_stage=1, nz=4, n_pre=5,
                                            nk1=2, nk2=2, batch_size=2, num_steps=2, mm_candidate_stride=60))
 """

@@ -25,6 +25,7 @@ import jax
 import numpy as np
 import pytest
 
+# CMD and FID are off in this file's configs (`action_metrics=False`): tests/test_action_metrics.py covers them.
 from jaxmotion import experiment
 from jaxmotion.config import load_config
 
@@ -35,7 +36,7 @@ CONFIGS = {
 from jaxmotion.config import Config
 from jaxmotion.models.dlow import CVAEConfig, DLowConfig, QConfig
 def get_config():
-    return Config(name="kill_dlow", method_config=DLowConfig(
+    return Config(name="kill_dlow", action_metrics=False, method_config=DLowConfig(
                       cvae=CVAEConfig(num_steps=100, batch_size=8, nz=8, nh_rnn=16, nh_mlp=(16,)),
                       q=QConfig(num_steps=40, batch_size=4, nh_rnn=16, nh_mlp=(16,))),
                   eval_k=(4,), ckpt_every=20, log_every=10, max_test_windows=8, eval_batch=8)
@@ -44,7 +45,7 @@ def get_config():
 from jaxmotion.config import Config
 from jaxmotion.models.divsamp import DivSampConfig
 def get_config():
-    return Config(name="kill_divsamp", method="divsamp", eval_k=(4,), ckpt_every=20, log_every=10, max_test_windows=8,
+    return Config(name="kill_divsamp", action_metrics=False, method="divsamp", eval_k=(4,), ckpt_every=20, log_every=10, max_test_windows=8,
                   eval_batch=8, method_config=DivSampConfig(hidden=16, nz=8, cvae_residual=1, sampler_residual=0,
                   num_bases=4, base_dim=8, nh=8, cvae_num_steps=100, cvae_batch_size=8, num_steps=40, batch_size=4, nk=4))
 """,

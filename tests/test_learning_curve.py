@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+# CMD and FID are off in this file's configs (`action_metrics=False`): tests/test_action_metrics.py covers them.
 from jaxmotion import experiment as ex
 from jaxmotion.config import Config
 from jaxmotion.models.dlow import CVAEConfig, DLowConfig, QConfig
@@ -18,7 +19,7 @@ def _curve_lines(stage_dir: Path) -> list[dict]:
 
 
 def test_curves_logged_per_stage_and_plotted(tmp_path, capsys):
-    cfg = Config(
+    cfg = Config(action_metrics=False,
         method_config=DLowConfig(cvae=CVAEConfig(num_steps=30), q=QConfig(num_steps=20)), eval_k=(5,),
         curve_every=15, curve_windows=24, curve_k=5, max_test_windows=60, log_every=10,
     )

@@ -10,6 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+# CMD and FID are off in this file's configs (`action_metrics=False`): tests/test_action_metrics.py covers them.
 from jaxmotion import experiment, realism
 from jaxmotion.body.markersets import LIMB_MARKER_PAIRS
 from jaxmotion.body.skeleton import toy_skeleton
@@ -110,7 +111,7 @@ def test_mojo_with_recursive_projection_keeps_bones_rigid_and_matches_mojo_laten
     ds = dataset([seq(i, 40) for i in range(3)], [seq(9, 40)])
     prep = experiment.prepare(ds)
     m = MojoConfig(nz=4, nh_rnn=8, nh_mlp=(8,), q_nh_rnn=8, q_nh_mlp=(8,), baselines=("mojo_proj",), proj_max_steps=5)
-    cfg = Config(method="mojo", method_config=m, eval_k=(3,))
+    cfg = Config(method="mojo", method_config=m, eval_k=(3,), action_metrics=False)
     params = {}
     for stage in experiment.get_method("mojo").stages(cfg, prep):
         params[stage.name] = init_state(stage, params).params
@@ -139,7 +140,7 @@ def test_projection_sampler_needs_a_body():
     ds = dataset([seq(0, 30)], [seq(1, 30)])
     ds.info.pop("body")
     m = MojoConfig(nz=4, nh_rnn=8, nh_mlp=(8,), q_nh_rnn=8, q_nh_mlp=(8,), baselines=("mojo_proj",))
-    cfg = Config(method="mojo", method_config=m, eval_k=(3,))
+    cfg = Config(method="mojo", method_config=m, eval_k=(3,), action_metrics=False)
     with pytest.raises(ValueError, match="body model"):
         experiment.predictors(cfg, ds, {"cvae": None, "q_k3": None}, 3)
     with pytest.raises(ValueError, match="proj_max_steps"):

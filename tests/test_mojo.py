@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+# CMD and FID are off in this file's configs (`action_metrics=False`): tests/test_action_metrics.py covers them.
 from jaxmotion import losses
 from jaxmotion.cli import main
 from jaxmotion.dct import dct_matrix
@@ -257,7 +258,7 @@ TINY = """
 from jaxmotion.config import Config
 from jaxmotion.models.mojo import MojoConfig
 def get_config():
-    return Config(name="tiny_mojo", method="mojo", eval_k=(4,), ckpt_every=5, log_every=5,
+    return Config(name="tiny_mojo", action_metrics=False, method="mojo", eval_k=(4,), ckpt_every=5, log_every=5,
                   max_test_windows=24, eval_batch=12,
                   method_config=MojoConfig(nz=4, nh_rnn=16, nh_mlp=(16,), num_steps=10, batch_size=8,
                                   q_nh_rnn=8, q_nh_mlp=(16,), q_num_steps=5, q_batch_size=4,

@@ -5,6 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+# CMD and FID are off in this file's configs (`action_metrics=False`): tests/test_action_metrics.py covers them.
 from jaxmotion.data.synthetic import PARENTS
 from jaxmotion.models import motionmap as mm
 
@@ -192,7 +193,7 @@ def test_every_stage_trains_resumes_and_predicts_on_small_synthetic_data(tmp_pat
     prep = experiment.prepare(ds)
     c = mm.MotionMapConfig(nh_rnn=32, nh_fuse=32, nh_uncertainty=32, n_uncertainty_layers=2, hm_size=16,
                            ae_steps=6, hm_steps=6, ft_steps=6, batch_size=8, tsne_fit_points=200)
-    cfg = Config(name="t", method="motionmap", method_config=c, eval_k=(6,), ckpt_every=3, log_every=3)
+    cfg = Config(name="t", method="motionmap", action_metrics=False, method_config=c, eval_k=(6,), ckpt_every=3, log_every=3)
     method = experiment.get_method("motionmap")
     trained = runner.train(method, cfg, prep, tmp_path)
     assert set(trained) == {"autoencoder", "codebook", "heatmap", "finetune"}

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+# CMD and FID are off in this file's configs (`action_metrics=False`): tests/test_action_metrics.py covers them.
 import jaxmotion
 from jaxmotion import experiment
 from jaxmotion.cli import main
@@ -27,7 +28,7 @@ from jaxmotion.retarget import bvh_from_positions, fit_bvh
 
 CMU = Path(__file__).resolve().parents[2] / "shared" / "data" / "cmu-bvh"
 
-TINY = Config(
+TINY = Config(action_metrics=False,
     name="tiny_predict",
     method_config=DLowConfig(cvae=CVAEConfig(num_steps=20, batch_size=8, nz=8, nh_rnn=16, nh_mlp=(16,)),
                              q=QConfig(num_steps=4, batch_size=4, nh_rnn=16, nh_mlp=(16,))),
