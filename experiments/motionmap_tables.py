@@ -35,6 +35,7 @@ PROTOCOLS = {  # name: (K, Config.mm_ground_truth)
 }
 PROTOCOL_MM = {"k7_protocol": (7, "test"), "k5_protocol": (5, "test")}
 COLUMNS = ("APD", "ADE", "FDE", "MMADE", "MMFDE")
+OPTIONAL = ("CMD", "FID")  # when the records have them (datasets with action labels)
 
 
 def run_label(run: Path) -> str:
@@ -95,11 +96,12 @@ def markdown(records: list[dict], protocols: dict) -> str:
         if not rows:
             continue
         r0 = rows[0]
+        cols = COLUMNS + tuple(c for c in OPTIONAL if all(c in r["metrics"] for r in rows))
         lines += [
             f"K = {k}, MM ground truth `{mm_source}` ({r0['n_windows']} test windows; MM set sizes per run below)",
             "",
-            "| run | predictor | " + " | ".join(COLUMNS) + " | MM mean | MM only self |",
-            "| --- | --- | " + " | ".join("---" for _ in COLUMNS) + " | --- | --- |",
+            "| run | predictor | " + " | ".join(cols) + " | MM mean | MM only self |",
+            "| --- | --- | " + " | ".join("---" for _ in cols) + " | --- | --- |",
         ]
         seen = set()
         for r in rows:
@@ -108,7 +110,7 @@ def markdown(records: list[dict], protocols: dict) -> str:
                 continue  # one zero-velocity row is enough: it does not depend on the run
             seen.add(key)
             m = r["metrics"]
-            vals = " | ".join(f"{m[c]:.4f}" if c != "APD" else f"{m[c]:.3f}" for c in COLUMNS)
+            vals = " | ".join(f"{m[c]:.4f}" if c not in ("APD", "CMD") else f"{m[c]:.3f}" for c in cols)
             lines.append(f"| {run_label(Path(r['run']))} | {r['method']} | {vals} | {m['MM_mean']:.1f} | {m['MM_only_self_frac']:.2f} |")
         missing = sorted({run_label(Path(r["run"])) for r in rows if r.get("missing_stage")})
         if missing:
