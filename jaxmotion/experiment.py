@@ -316,15 +316,15 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
     method = get_method(cfg.method)
     cfg = resolve(cfg)
     deviation = cfg.mm_deviation
+    source = mm_source(cfg, method)
     if deviation == "gsps":  # GSPS's release: windows whose MM set is themselves alone enter no metric
-        prep, deviation = skip_single_future(prep, method, mm_source(cfg, method)), None
+        prep, deviation = skip_single_future(prep, method, source), None
     modes = None
     if ds.known_modes is not None:
         modes = ds.known_modes(ds)
         sel = prep.keep
         modes = modes._replace(modes=modes.modes[sel], true_mode=modes.true_mode[sel], boundary=modes.boundary[sel])
     x, y = prep.x, prep.y
-    source = mm_source(cfg, method)
     transfer = {}
     if cfg.mm_deviation == "divsamp":
         # DivSamp's deviation drops exact-duplicate last poses, so evaluate_windows builds its sets from the poses.
