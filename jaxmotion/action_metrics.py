@@ -43,6 +43,7 @@ from flax import serialization
 from jaxtyping import Array, ArrayLike, Float, Int
 
 from jaxmotion.data.datasets import default_cache_dir
+from jaxmotion.formats.atomic import write_bytes_atomic
 from jaxmotion.data.types import MotionDataset
 from jaxmotion.data.windows import canonicalise_windows, split_frames, test_windows
 from jaxmotion.models import action_classifier as ac
@@ -378,12 +379,9 @@ def dataset_classifier(
         log(f"action classifier ({ds.name}): test accuracy {acc:.3f} on {len(test_idx)} windows (chance {chance:.3f}), "
             f"trained in {train_s:.0f} s")
     try:
-        folder.mkdir(parents=True, exist_ok=True)
         # Written under private names and renamed, so a concurrent or interrupted run never leaves half a file.
         for path, data in ((weights, serialization.to_bytes(jax.device_get(params))), (meta, json.dumps(info, indent=1).encode())):
-            tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-            tmp.write_bytes(data)
-            tmp.replace(path)
+            write_bytes_atomic(path, data)
     except OSError as e:  # a read-only or full cache: the classifier still serves this evaluation
         if log is not None:
             log(f"action classifier ({ds.name}): could not cache it in {folder} ({e}); it will be trained again next time")

@@ -33,6 +33,8 @@ from beartype import beartype
 from jax import lax
 from jaxtyping import Array, ArrayLike, Bool, Float, Int, jaxtyped
 
+from jaxmotion.formats.atomic import savez_atomic
+
 MMDeviation = Literal[None, "divsamp", "comusion"]
 
 METRIC_NAMES = ("APD", "ADE", "FDE", "MMADE", "MMFDE", "ADE-m", "FDE-m")
@@ -375,9 +377,8 @@ def motionmap_mm_sets(
         rows.append(i + s)
         cols.append(j)
     idx, mask = _left_packed(rows, cols, n)
-    if cache is not None:
-        cache.parent.mkdir(parents=True, exist_ok=True)
-        np.savez(cache, idx=idx, mask=mask)
+    if cache is not None:  # whole or not at all: another process may be reading or writing the same sets
+        savez_atomic(cache, idx=idx, mask=mask)
     return MMSets(jnp.asarray(idx), jnp.asarray(mask))
 
 

@@ -199,7 +199,6 @@ def predict_markers(
     Returns the lines to print. `predict_file.predict_file` reads the file and calls this for marker models.
     """
     lay = model.layout
-    path = motion.path
     w = marker_window(motion, lay, frame)
     x, gt, canon, end, notes = w.x, w.gt, w.canon, w.end, w.notes
     fps, t_his, t_pred = lay["fps"], lay["t_his"], lay["t_pred"]

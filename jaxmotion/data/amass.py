@@ -76,6 +76,7 @@ from jaxmotion.data.augment import left_right_pairs
 from jaxmotion.data.datasets import check_finite, default_cache_dir
 from jaxmotion.data.types import MotionDataset, Sequence, Skeleton
 from jaxmotion.errors import DataError
+from jaxmotion.formats.atomic import savez_atomic
 
 # BeLFusion's lists (`data_loader/amass.py`, its released AMASS config), AMASS's current names.
 BELFUSION_SPLIT = {
@@ -483,10 +484,7 @@ def _subset(root: Path, sub: str, files: list[Path], fps: float, body_for, setti
             c = {k: z[k] for k in z.files}
     else:
         c = _compute_subset(root, files, fps, mojo, body_for, settings["skip_nonfinite"])
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.stem}.tmp-{os.getpid()}.npz")
-        np.savez(tmp, **c)
-        tmp.replace(path)
+        savez_atomic(path, **c)
     splits = np.cumsum(c["lengths"])[:-1]
     positions = np.split(c["positions"], splits) if len(c["lengths"]) else []  # np.split(x, []) is [x]
     canon = np.split(c["canon"], splits) if mojo and positions else [None] * len(positions)

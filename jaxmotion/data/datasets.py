@@ -270,7 +270,7 @@ def load_bandai(root: str | os.PathLike, cache_dir: str | os.PathLike | None = N
     clip_dir = bandai_clip_dir(root, cache_dir)
     files = sorted(p for p in clip_dir.iterdir() if p.suffix == ".bvh" and BANDAI_NAME.match(p.stem))
     if not files:
-        raise DataError(clip_dir, f"no Bandai-Namco-2 clips (dataset-2_{{content}}_{{style}}_{{id}}.bvh)")
+        raise DataError(clip_dir, "no Bandai-Namco-2 clips (dataset-2_{content}_{style}_{id}.bvh)")
     contents, styles = _bandai_labels(root, clip_dir)
 
     train, test, skipped = [], [], 0

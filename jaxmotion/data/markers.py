@@ -28,6 +28,7 @@ from jaxmotion.data.datasets import (
 )  # fmt: skip
 from jaxmotion.data.types import MotionDataset, Sequence, Skeleton
 from jaxmotion.data.windows import canonicalise_windows
+from jaxmotion.formats.atomic import savez_atomic
 from jaxmotion.formats.bvh import read_bvh
 
 
@@ -150,13 +151,10 @@ def load_bandai_markers(root: str | os.PathLike, marker_set: str = "bandai", cac
         names, styl, content = [c.name for c in clips], [c.style for c in clips], [c.content for c in clips]
         markers = [c.markers.astype(np.float32) for c in clips]
         canon = [canonical_frames(c.joints, body.names, up_axis=1) for c in clips]
-        cache.parent.mkdir(parents=True, exist_ok=True)
-        tmp = cache.with_suffix(".tmp.npz")
-        np.savez(
-            tmp, names=np.array(names), styles=np.array(styl), contents=np.array(content),
+        savez_atomic(
+            cache, names=np.array(names), styles=np.array(styl), contents=np.array(content),
             lengths=np.array([len(m) for m in markers]), markers=np.concatenate(markers), canon=np.concatenate(canon),
         )  # fmt: skip
-        tmp.replace(cache)
     train, test = [], []
     for n, s, c, mk, cn in zip(names, styl, content, markers, canon):
         seq = Sequence(mk, BANDAI_PROTOCOL["fps"], "unknown", c, name=n, canon=cn)

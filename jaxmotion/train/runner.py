@@ -9,7 +9,6 @@ names the stage and the mismatch, not a stack trace from the checkpoint library.
 from __future__ import annotations
 
 import json
-import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -21,6 +20,7 @@ import orbax.checkpoint as ocp
 
 from jaxmotion import distributed
 from jaxmotion.errors import CheckpointError
+from jaxmotion.formats.atomic import write_text_atomic
 from jaxmotion.method import Method, Stage
 from jaxmotion.train.loop import TrainState, create_state, fit, make_bn_train_step, make_train_step, restore_params
 
@@ -173,9 +173,7 @@ def run_stage(
     manifest = stage_dir / MANIFEST
     if not manifest.exists() and distributed.is_main():
         # Written whole or not at all: a kill mid-write must not leave a manifest that stops `--resume`.
-        tmp = manifest.with_name(MANIFEST + ".tmp")
-        tmp.write_text(json.dumps(_manifest(method, stage, state, upstream), indent=1))
-        os.replace(tmp, manifest)
+        write_text_atomic(manifest, json.dumps(_manifest(method, stage, state, upstream), indent=1))
     state = fit(
         state, _train_step(stage), stage.batches or (lambda rng: None), num_steps=stage.num_steps, workdir=stage_dir,
         seed=stage.data_seed, resume=resume, ckpt_every=cfg.ckpt_every, log_every=cfg.log_every,
