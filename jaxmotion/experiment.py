@@ -162,7 +162,8 @@ def learning_curve(cfg: Config, prep: Prepared) -> runner.Curve:
     """Returns `curve(params) -> {"K", "n_windows", "predictors": {name: {APD, ADE, FDE, MMADE, MMFDE}}} | None`.
 
     The windows are `cfg.curve_windows` evenly spaced test windows (the same at every point); their
-    MM sets are built over every test window (PROTOCOL sec. 2, `mm_deviation` not applied), so the
+    MM sets come from the evaluation's source (`mm_source`: `cfg.mm_ground_truth`, else the
+    method's own) built over every window of that source (`mm_deviation` not applied), so the
     multimodal terms are the full evaluation's for those windows. The predictors are the method's
     for the stages trained so far, less `Method.curve_skip`; None when that leaves none (a stage
     whose later stages are needed to predict). The noise key is the same at every point.
@@ -170,9 +171,12 @@ def learning_curve(cfg: Config, prep: Prepared) -> runner.Curve:
     method, ds = get_method(cfg.method), prep.dataset
     n = len(prep.windows)
     sub = np.unique(np.linspace(0, n - 1, min(cfg.curve_windows, n)).round().astype(int))
-    sets, ref = reference_sets(method, prep)
-    sets = metrics.MMSets(np.asarray(sets.idx)[sub], np.asarray(sets.mask)[sub])
-    ref = prep.y if ref is None else ref
+    r = mm_reference(prep, mm_source(cfg, method))
+    sets = metrics.MMSets(np.asarray(r.sets.idx)[sub], np.asarray(r.sets.mask)[sub])
+    ref = prep.y if r.futures is None else r.futures
+    transfer = {}
+    if r.transfer_parents is not None:  # MotionMap's sources: members transferred onto each window's skeleton
+        transfer = dict(transfer_poses=r.transfer_poses[sub], transfer_parents=r.transfer_parents)
     x, y = prep.x[sub], prep.y[sub]
 
     def curve(params: dict) -> dict | None:
@@ -185,7 +189,7 @@ def learning_curve(cfg: Config, prep: Prepared) -> runner.Curve:
             if name in method.curve_skip:
                 continue
             chunks = predict_chunks(fn, x, jax.random.key(cfg.seed + 11), cfg.eval_batch)
-            m = metrics.evaluate_windows(chunks, y, sets, reference_futures=ref)
+            m = metrics.evaluate_windows(chunks, y, sets, reference_futures=ref, **transfer)
             out[name] = {k: round(float(m[k]), 6) for k in CURVE_METRICS}
         return {"K": cfg.curve_k, "n_windows": int(len(sub)), "predictors": out} if out else None
 

@@ -154,3 +154,32 @@ def test_a_computed_stage_is_restored_not_computed_again(tmp_path):
     assert len(calls) == 1  # neither the resumed run nor the restore computed it again
     for params in (again, restored):
         np.testing.assert_allclose(np.asarray(params["stats"]["s"]), np.asarray(first["stats"]["s"]))
+
+
+def test_learning_curve_takes_its_mm_ground_truth_from_the_config():
+    """`learning_curve` scores MMADE against the evaluation's source (`Config.mm_ground_truth`), not always the method's own."""
+    import dataclasses
+
+    from jaxmotion import metrics
+    from jaxmotion.methods.common import zero_velocity
+
+    register(Method(name="curve_stub", config_type=dict, stages=lambda c, p: [],
+                    predictors=lambda c, d, p, k: {"zv": zero_velocity(d.t_pred, k)}))  # fmt: skip
+    ds = experiment.load_data(Config())
+    # Training on the test sequences themselves, so that training windows match test windows (finite MMADE).
+    prep = experiment.prepare(dataclasses.replace(ds, train=ds.test), 40)
+    base = Config(method="curve_stub", method_config={}, curve_k=2, curve_windows=10)
+    sub = np.unique(np.linspace(0, len(prep.windows) - 1, 10).round().astype(int))
+    x = prep.x[sub]
+    pred = np.broadcast_to(x[:, None, -1:], (len(sub), 2, ds.t_pred, ds.dim))
+    got = {}
+    for source in (None, "train", "motionmap-train"):
+        point = experiment.learning_curve(dataclasses.replace(base, mm_ground_truth=source), prep)({})["predictors"]["zv"]
+        r = experiment.mm_reference(prep, source or "test")
+        sets = metrics.MMSets(np.asarray(r.sets.idx)[sub], np.asarray(r.sets.mask)[sub])
+        transfer = {} if r.transfer_parents is None else dict(transfer_poses=r.transfer_poses[sub], transfer_parents=r.transfer_parents)
+        want = metrics.evaluate_windows(iter([pred]), prep.y[sub], sets,
+                                        reference_futures=prep.y if r.futures is None else r.futures, **transfer)  # fmt: skip
+        assert np.isfinite(point["MMADE"]) and point["MMADE"] == pytest.approx(float(want["MMADE"]), abs=1e-6), source
+        got[source] = point["MMADE"]
+    assert got["motionmap-train"] != got[None]  # another reference set: the curve moves with the source
