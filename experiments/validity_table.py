@@ -10,7 +10,9 @@ key, and prints per run and sampler: BDF (bone deformation, `realism.bone_deform
 fraction of predicted frames outside an angle bound, and the mean pose-prior NLL per frame under the
 GSPS run's flow prior (nats; also without the log-determinant, the release's `eval.py` figure),
 beside APD / ADE / FDE / MMADE / MMFDE from the run's metrics.json (computed there on its own
-`n_windows`). A "ground truth" row scores the test windows' true futures. Every run must share the
+`n_windows`), and CMD / FID (`jaxmotion.action_metrics`: the project's own action classifier, trained
+once per dataset and cached) on the same futures where the data has action labels (`--no-action-metrics`
+leaves them out). A "ground truth" row scores the test windows' true futures. Every run must share the
 GSPS run's skeleton. `--out` writes OUT.md and OUT.json (with the bounds used).
 
 The data is the run's own (`--data` overrides the path in its predictor.json, e.g. when it was a
@@ -29,6 +31,7 @@ import numpy as np
 
 PROTOCOL_COLUMNS = ("APD", "ADE", "FDE", "MMADE", "MMFDE")
 VALIDITY_COLUMNS = ("BDF", "angle_violation", "prior_nll", "prior_nll_z")
+ACTION_COLUMNS = ("CMD", "FID")
 HEADERS = {"angle_violation": "angle viol.", "prior_nll": "prior NLL", "prior_nll_z": "NLL w/o log-det"}
 
 
@@ -61,12 +64,21 @@ def protocol_metrics(run: Path, sampler: str, k: int) -> tuple[dict, int | None]
     return {}, None
 
 
-def score(v, chunks) -> dict[str, float]:
-    """Returns the validity metrics averaged over the windows of `chunks` (each `(b, K, t_pred, D)`)."""
+def score(v, chunks, action=None) -> dict[str, float]:
+    """Returns the validity metrics averaged over the windows of `chunks` (each `(b, K, t_pred, D)`), one pass.
+
+    With an `action_metrics.ActionEvaluator`, also CMD and FID of the same futures (the chunks must
+    cover every test window, in order).
+    """
     from jaxmotion import validity
 
-    parts = [validity.window_validity(v, p) for p in chunks]
-    return {key: float(np.mean(np.concatenate([p[key] for p in parts]))) for key in parts[0]}
+    parts, action_parts = [], []
+    for p in chunks:
+        parts.append(validity.window_validity(v, p))
+        if action is not None:
+            action_parts.append(action.chunk(p))
+    out = {key: float(np.mean(np.concatenate([p[key] for p in parts]))) for key in parts[0]}
+    return {**out, **(action.result(action_parts) if action is not None else {})}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -78,18 +90,20 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--max-windows", type=int, default=None, help="evenly spaced test windows (default: every protocol window)")
     p.add_argument("--samplers", nargs="+", default=None, help="only these samplers (default: every sampler of every run)")
     p.add_argument("--out", default=None, help="write OUT.md and OUT.json")
+    p.add_argument("--no-action-metrics", dest="action_metrics", action="store_false",
+                   help="leave out CMD and FID (they need the data's action labels and a trained classifier)")
     args = p.parse_args(argv)
 
     import jax
 
-    from jaxmotion import experiment, validity
+    from jaxmotion import action_metrics, experiment, validity
     from jaxmotion.predictor import load
 
     g = load(args.gsps_run)
     if g.config.method != "gsps":
         raise SystemExit(f"--gsps-run {args.gsps_run}: a {g.config.method!r} run, not a GSPS run")
     v = validity.from_gsps_run(g.config, g.dataset, g.params)
-    rows, cache, scored_gt = [], {}, set()
+    rows, cache, actions = [], {}, {}
     for run in map(Path, args.runs):
         cfg, prep, params = load_run(run, args.data, args.max_windows, cache)
         ds = prep.dataset
@@ -97,10 +111,16 @@ def main(argv: list[str] | None = None) -> int:
             validity.check_skeleton(v, ds.skeleton.names, ds.skeleton.parents, str(run))
         except ValueError as e:
             raise SystemExit(str(e)) from None
-        if id(prep) not in scored_gt:  # the true futures, once per dataset
-            scored_gt.add(id(prep))
+        if id(prep) not in actions:  # the classifier and the true futures, once per dataset
+            c = action_metrics.ClassifierConfig(num_steps=cfg.action_classifier_steps)
+            actions[id(prep)] = action = (
+                action_metrics.evaluator(ds, prep.y, prep.seq_index, prep.starts, config=c, batch=cfg.eval_batch)
+                if args.action_metrics else None
+            )  # fmt: skip
+            gt = [prep.y[s : s + cfg.eval_batch, None] for s in range(0, len(prep.y), cfg.eval_batch)]
             rows.append({"run": ds.name, "sampler": "ground truth", "K": 1, "n_windows": len(prep.windows),
-                         **score(v, [prep.y[s : s + cfg.eval_batch, None] for s in range(0, len(prep.y), cfg.eval_batch)])})
+                         **score(v, gt, action)})
+        action = actions[id(prep)]
         try:
             fns = experiment.predictors(cfg, ds, params, args.k)
         except KeyError as e:
@@ -111,11 +131,11 @@ def main(argv: list[str] | None = None) -> int:
             chunks = experiment.predict_chunks(fn, prep.x, jax.random.key(cfg.seed + 7), cfg.eval_batch)
             m, n_eval = protocol_metrics(run, name, args.k)
             rows.append({"run": str(run), "config": cfg.name, "sampler": name, "K": args.k, "n_windows": len(prep.windows),
-                         "metrics_json_windows": n_eval, **{c: m.get(c) for c in PROTOCOL_COLUMNS}, **score(v, chunks)})
-            print(f"{run} {name}: " + " ".join(f"{c}={rows[-1][c]:.4f}" for c in VALIDITY_COLUMNS if c in rows[-1]),
+                         "metrics_json_windows": n_eval, **{c: m.get(c) for c in PROTOCOL_COLUMNS}, **score(v, chunks, action)})
+            print(f"{run} {name}: " + " ".join(f"{c}={rows[-1][c]:.4f}" for c in VALIDITY_COLUMNS + ACTION_COLUMNS if c in rows[-1]),
                   file=sys.stderr, flush=True)
 
-    cols = PROTOCOL_COLUMNS + VALIDITY_COLUMNS
+    cols = PROTOCOL_COLUMNS + VALIDITY_COLUMNS + tuple(c for c in ACTION_COLUMNS if any(c in r for r in rows))
     lines = ["| run | sampler | K | windows (here / metrics.json) | " + " | ".join(HEADERS.get(c, c) for c in cols) + " |",
              "|" + " --- |" * (4 + len(cols))]
     for r in rows:
@@ -125,7 +145,8 @@ def main(argv: list[str] | None = None) -> int:
     md = "\n".join(lines)
     print(md)
     print(f"\nangle bounds and pose prior: {args.gsps_run} ({g.config.name}); APD..MMFDE: each run's metrics.json; "
-          f"angle viol.: fraction of predicted frames outside a bound; prior NLL: nats per frame")
+          f"angle viol.: fraction of predicted frames outside a bound; prior NLL: nats per frame"
+          + ("; CMD / FID: the project's own action classifier, on these futures" if "CMD" in cols else ""))
     if args.out:
         out = Path(args.out)
         out.parent.mkdir(parents=True, exist_ok=True)
