@@ -17,6 +17,11 @@ at a K it was not trained for: with `--train-missing` the run is copied to `OUT/
 the missing stage is trained there at the run's own settings (`experiment.train(..., resume=True)`
 trains only what is missing); without it the table says the sampler is missing. MotionMap gives its
 top-K peaks (its own rule when a window has fewer peaks than K: `methods.motionmap`).
+
+`--method-option NAME=VALUE` (repeatable) evaluates with a field of the runs' method config
+changed, for the runs whose method config has that field (e.g. `peak_threshold_rel=0.1` for
+MotionMap's peak extraction; the trained parameters are the run's); their records go to
+`OUT/<parent>_<run name>_NAME-VALUE/` and their table rows carry that label.
 """
 
 from __future__ import annotations
@@ -47,7 +52,34 @@ def _needs_stage(method, cfg, ds, params, k: int) -> bool:
     return method.name not in method.predictors(cfg, ds, params, k)
 
 
-def evaluate_run(run: Path, out: Path, protocols: dict, data: str | None, train_missing: bool) -> list[dict]:
+def parse_options(items: list[str]) -> dict:
+    """Returns `{name: value}` of `NAME=VALUE` strings, each value read as a Python literal where it is one."""
+    import ast
+
+    out = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not name.isidentifier():
+            raise SystemExit(f"--method-option {item!r}: expected NAME=VALUE")
+        try:
+            out[name] = ast.literal_eval(value)
+        except (ValueError, SyntaxError):
+            out[name] = value
+    return out
+
+
+def with_options(cfg, options: dict):
+    """Returns `(cfg with the method-config fields of `options` replaced, label suffix)`; fields it lacks are left out."""
+    mc = cfg.method_config
+    fields = {f.name for f in dataclasses.fields(mc)} if dataclasses.is_dataclass(mc) else set()
+    use = {k: v for k, v in options.items() if k in fields}
+    if not use:
+        return cfg, ""
+    suffix = "".join(f"_{k}-{v}" for k, v in sorted(use.items()))
+    return dataclasses.replace(cfg, method_config=dataclasses.replace(mc, **use)), suffix
+
+
+def evaluate_run(run: Path, out: Path, protocols: dict, data: str | None, train_missing: bool, options: dict | None = None) -> list[dict]:
     from jaxmotion import experiment as ex
     from jaxmotion.methods import get_method
     from jaxmotion.predictor import run_config
@@ -57,7 +89,9 @@ def evaluate_run(run: Path, out: Path, protocols: dict, data: str | None, train_
     ds = ex.load_data(cfg, data or source)
     prep = ex.prepare(ds, cfg.max_test_windows, cfg.train_sampler)
     params = ex.restore(cfg, prep, run)
-    dest = out / run_label(run)
+    cfg, suffix = with_options(ex.resolve(cfg), options or {})
+    label = run_label(run) + suffix
+    dest = out / label
     dest.mkdir(parents=True, exist_ok=True)
     ks = sorted({k for k, _ in protocols.values()})
     missing = [k for k in ks if _needs_stage(method, cfg, ds, params, k)]
@@ -81,7 +115,7 @@ def evaluate_run(run: Path, out: Path, protocols: dict, data: str | None, train_
         scratch = dest / f"eval_{name}"
         recs = ex.evaluate(c, prep, params, scratch)
         for r in recs:
-            r["run"], r["protocol"] = str(run), name
+            r["run"], r["protocol"], r["label"] = str(run), name, label
             r["missing_stage"] = k in missing
         f.write_text(json.dumps(recs, indent=1, default=float))
         shutil.rmtree(scratch, ignore_errors=True)
@@ -105,14 +139,15 @@ def markdown(records: list[dict], protocols: dict) -> str:
         ]
         seen = set()
         for r in rows:
-            key = (r["method"], run_label(Path(r["run"])))
+            label = r.get("label", run_label(Path(r["run"])))
+            key = (r["method"], label)
             if r["method"] == "zero_velocity" and "zero_velocity" in {s[0] for s in seen}:
                 continue  # one zero-velocity row is enough: it does not depend on the run
             seen.add(key)
             m = r["metrics"]
             vals = " | ".join(f"{m[c]:.4f}" if c not in ("APD", "CMD") else f"{m[c]:.3f}" for c in cols)
-            lines.append(f"| {run_label(Path(r['run']))} | {r['method']} | {vals} | {m['MM_mean']:.1f} | {m['MM_only_self_frac']:.2f} |")
-        missing = sorted({run_label(Path(r["run"])) for r in rows if r.get("missing_stage")})
+            lines.append(f"| {label} | {r['method']} | {vals} | {m['MM_mean']:.1f} | {m['MM_only_self_frac']:.2f} |")
+        missing = sorted({r.get("label", run_label(Path(r["run"]))) for r in rows if r.get("missing_stage")})
         if missing:
             lines.append(f"\nNo K = {k} sampler of their own method (a per-K stage not trained): {', '.join(missing)}.")
         lines.append("")
@@ -127,7 +162,10 @@ def main(argv=None) -> int:
     ap.add_argument("--train-missing", action="store_true", help="train a per-K stage a run lacks, in a copy of the run")
     ap.add_argument("--protocol-mm", action="store_true", help="also evaluate at both K with the protocol's MM ground truth")
     ap.add_argument("--markdown", type=Path, default=None, help="write the tables to this file too")
+    ap.add_argument("--method-option", action="append", default=[], metavar="NAME=VALUE",
+                    help="evaluate with this method-config field changed (runs whose method config has it)")
     args = ap.parse_args(argv)
+    options = parse_options(args.method_option)
     protocols = {**PROTOCOLS, **(PROTOCOL_MM if args.protocol_mm else {})}
     for run in args.runs:
         if not run.is_dir():
@@ -135,7 +173,7 @@ def main(argv=None) -> int:
     records = []
     for run in args.runs:
         t0 = time.perf_counter()
-        records += evaluate_run(run.expanduser().absolute(), args.out.expanduser(), protocols, args.data, args.train_missing)
+        records += evaluate_run(run.expanduser().absolute(), args.out.expanduser(), protocols, args.data, args.train_missing, options)
         print(f"{run}: done in {time.perf_counter() - t0:.0f}s", flush=True)
     text = markdown(records, protocols)
     print(text)
