@@ -104,14 +104,20 @@ def _worker_train(out: Path, devices: int) -> None:
 
 
 def _worker_process(pid: int, port: int, work: Path, kill_at: int | None) -> None:
-    """One of two processes training DLow; writes the parameters it ends with to `work/params<pid>.npz`."""
+    """One of two processes training DLow; writes the parameters it ends with to `work/params<pid>.npz`.
+
+    Process 0 writes `predictor.json` first, as `experiment.train` does, so the run loads with `jaxmotion.load`.
+    """
     from jaxmotion import distributed
 
     distributed.initialize(f"127.0.0.1:{port}", 2, pid)
     from jaxmotion.methods import get_method
+    from jaxmotion.predictor import write_manifest
     from jaxmotion.train import runner
 
     cfg, prep = _prepared(_configs()["dlow"])
+    if distributed.is_main():
+        write_manifest(cfg, prep.dataset, work)
     method = get_method("dlow")
     if kill_at is not None:
         method = _killed_at(method, "cvae", kill_at)
@@ -220,15 +226,26 @@ def _two_processes(work: Path, kill_at: int | None, cache: Path) -> list[int]:
     return [p.returncode for p in procs]
 
 
-def test_two_processes_on_localhost_train_as_one_and_resume(tmp_path, runs, cache):
-    work = tmp_path / "two"
-    log = lambda i: (tmp_path / f"two-{KILL_AT}-{i}.log").read_text()[-3000:]  # noqa: E731
-    codes = _two_processes(work, KILL_AT, cache)
-    assert codes[0] == -signal.SIGKILL, log(0)
-    steps = sorted(int(p.name) for p in (work / "cvae" / "ckpt").iterdir() if p.name.isdigit())
-    assert steps and max(steps) == KILL_AT and not (work / "dlow_k4").exists()
-    log = lambda i: (tmp_path / f"two-None-{i}.log").read_text()[-3000:]  # noqa: E731
-    assert _two_processes(work, None, cache) == [0, 0], log(0) + log(1)
+@pytest.fixture(scope="module")
+def two(tmp_path_factory, cache) -> dict:
+    """The two-process DLow run, killed at checkpoint `KILL_AT` and then resumed: its folder, what each launch left."""
+    root = tmp_path_factory.mktemp("two")
+    work = root / "two"
+    killed = _two_processes(work, KILL_AT, cache)
+    after_kill = sorted(int(p.name) for p in (work / "cvae" / "ckpt").iterdir() if p.name.isdigit())
+    later_stage = (work / "dlow_k4").exists()
+    resumed = _two_processes(work, None, cache)
+    log = lambda kill_at, i: (root / f"two-{kill_at}-{i}.log").read_text()[-3000:]  # noqa: E731
+    return dict(work=work, killed=killed, after_kill=after_kill, later_stage=later_stage, resumed=resumed, log=log)
+
+
+def test_two_processes_on_localhost_train_as_one_and_resume(two, runs):
+    work = two["work"]
+    assert two["killed"][0] == -signal.SIGKILL, two["log"](KILL_AT, 0)
+    steps = two["after_kill"]
+    assert steps and max(steps) == KILL_AT and not two["later_stage"]
+    log = lambda i: two["log"](None, i)  # noqa: E731
+    assert two["resumed"] == [0, 0], log(0) + log(1)
     p0, p1 = dict(np.load(work / "params0.npz")), dict(np.load(work / "params1.npz"))
     assert sorted(p0) == sorted(p1)
     for k in p0:
@@ -238,6 +255,29 @@ def test_two_processes_on_localhost_train_as_one_and_resume(tmp_path, runs, cach
     assert "dlow cvae" in log(0) and "dlow cvae" not in log(1)
     steps = lambda d: [r["step"] for r in map(json.loads, (d / "cvae" / "log.jsonl").read_text().splitlines())]  # noqa: E731
     assert steps(work) == steps(runs[1] / "dlow") == [2, 4, 6]
+
+
+def test_two_process_run_loads_and_predicts_in_one_process(two):
+    """A run trained on two processes loads in this one (one device): orbax's checkpoint names both processes' devices."""
+    import jax
+
+    import jaxmotion
+    from jaxmotion import experiment
+
+    assert two["resumed"] == [0, 0], two["log"](None, 0)
+    assert jax.process_count() == 1
+    cfg, prep = _prepared(_configs()["dlow"])
+    model = jaxmotion.load(two["work"])
+    x, key = prep.x[:3], jax.random.key(5)
+    got = model.predict(x, k=4, key=key, method="dlow")
+    assert got.shape == (3, 4, prep.dataset.t_pred, prep.dataset.dim) and np.isfinite(got).all()
+    # The parameters the two processes ended with, exactly; and those `experiment.restore` gives.
+    np.testing.assert_equal(_leaves(model.params), dict(np.load(two["work"] / "params0.npz")))
+    params = experiment.restore(cfg, prep, two["work"])
+    assert sorted(params) == sorted(model.params) == ["cvae", "dlow_k4"]
+    np.testing.assert_equal(_leaves(params), _leaves(model.params))
+    want = experiment.predictors(cfg, prep.dataset, params, 4)["dlow"](jax.numpy.asarray(x), key)
+    np.testing.assert_array_equal(got, np.asarray(want))
 
 
 def test_initialize_without_settings_is_a_no_op_and_bad_settings_are_clear(monkeypatch):

@@ -352,6 +352,35 @@ def restore_params(workdir: str | Path, state: TrainState) -> TrainState:
     return restored
 
 
+def local_sharding() -> jax.sharding.Sharding:
+    """Returns the sharding of an array on this process's first device (where a one-process restore puts arrays)."""
+    return jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
+
+
+def restore_untargeted(ckpt: str | Path) -> tuple[int, Any]:
+    """Returns `(step, tree)`: the latest checkpoint in `ckpt` restored without a target structure.
+
+    An array is restored with the sharding it was saved with when this process has those devices, else
+    onto this process's first device (`local_sharding`): a run trained on several processes (or on more
+    devices) loads in one process, where orbax alone refuses it ("Topology mismatch", its checkpoint
+    naming devices this process does not have). Raises `CheckpointError` when there is no checkpoint or
+    it does not restore.
+    """
+    ckpt = Path(ckpt).absolute()
+    mngr = ocp.CheckpointManager(ckpt)
+    try:
+        step = mngr.latest_step()
+        if step is None:
+            raise CheckpointError(f"{ckpt}: no checkpoint; train this run first (jaxmotion train)")
+        return step, mngr.restore(step, args=ocp.args.StandardRestore(fallback_sharding=local_sharding()))
+    except CheckpointError:
+        raise
+    except Exception as e:
+        raise CheckpointError(f"{ckpt}: checkpoint does not restore ({type(e).__name__}: {str(e)[:200]})") from e
+    finally:
+        mngr.close()
+
+
 def _restore(mngr: ocp.CheckpointManager, step: int, state: TrainState) -> TrainState:
     """Returns checkpoint `step` restored into the structure of `state`, with `state`'s frozen inputs."""
     restored = mngr.restore(step, args=ocp.args.StandardRestore(state.replace(frozen=None)))

@@ -16,12 +16,12 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
-import orbax.checkpoint as ocp
 
 from jaxmotion import distributed
 from jaxmotion.errors import CheckpointError
 from jaxmotion.formats.atomic import write_text_atomic
 from jaxmotion.method import Method, Stage
+from jaxmotion.train import loop
 from jaxmotion.train.loop import TrainState, create_state, fit, make_bn_train_step, make_train_step, restore_params
 
 MANIFEST = "stage.json"
@@ -114,19 +114,7 @@ def restore_untargeted(stage_dir: Path):
     No `stage.init` is needed for the structure, so nothing is computed: `jaxmotion.load` and the
     restore of computed stages (`Stage.num_steps == 0`, e.g. MotionMap's t-SNE codebook) use it.
     """
-    ckpt = (Path(stage_dir) / "ckpt").absolute()
-    mngr = ocp.CheckpointManager(ckpt)
-    try:
-        step = mngr.latest_step()
-        if step is None:
-            raise CheckpointError(f"{ckpt}: no checkpoint; train this run first (jaxmotion train)")
-        restored = mngr.restore(step, args=ocp.args.StandardRestore())
-    except CheckpointError:
-        raise
-    except Exception as e:
-        raise CheckpointError(f"{ckpt}: checkpoint does not restore ({type(e).__name__}: {str(e)[:200]})") from e
-    finally:
-        mngr.close()
+    _, restored = loop.restore_untargeted(Path(stage_dir) / "ckpt")  # onto this process's devices when saved on others
     params = jax.tree.map(jnp.asarray, restored["params"])
     manifest = Path(stage_dir) / MANIFEST
     want = json.loads(manifest.read_text()).get("params") if manifest.is_file() else None
