@@ -57,6 +57,7 @@ def main(argv: list[str] | None = None) -> int:
                 window = int(experiment.most_multimodal(prep, 1)[0])
             if not 0 <= window < len(prep.x):
                 raise SystemExit(f"--window {window}: the data has {len(prep.x)} test windows")
+            roles = gsps.angle_roles(v.names, v.parents)  # the scoring skeleton's, the same for every run
         try:
             validity.check_skeleton(v, ds.skeleton.names, ds.skeleton.parents, str(run))
         except ValueError as e:
@@ -64,7 +65,6 @@ def main(argv: list[str] | None = None) -> int:
         fn = experiment.predictors(cfg, ds, params, args.k)["gsps"]
         pred = np.asarray(fn(jnp.asarray(prep.x[window : window + 1]), jax.random.key(cfg.seed + 7)))  # (1, K, t, D)
         scores = {key: np.asarray(a)[0] for key, a in validity.sample_validity(v, pred).items()}  # (K,) each
-        roles = dict(sorted(gsps.angle_roles(v.names, v.parents).items()))
         end_bad = np.asarray(gsps.violation_fraction(jnp.asarray(pred[0, :, -1:]), roles, jnp.asarray(v.bounds))) > 0
         rows.append({"run": str(run), "config": cfg.name, "pred": pred[0], "x": prep.x[window], "y": prep.y[window],
                      "end_violates": end_bad, **scores})

@@ -15,6 +15,7 @@ are the run's, only the peak extraction changes), e.g. `--threshold-rel 0.35 0.2
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -42,8 +43,6 @@ def main(argv=None) -> int:
         ap.error(f"{args.run}: a {cfg.method!r} run, not a MotionMap one")
     ds = ex.load_data(cfg, args.data or source)
     prep = ex.prepare(ds, cfg.max_test_windows, cfg.train_sampler)
-    import dataclasses
-
     params = ex.restore(cfg, prep, args.run)
     mc = motionmap.settings(cfg)
     for thr in args.threshold_rel or [mc.peak_threshold_rel]:
