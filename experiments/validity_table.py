@@ -96,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
 
     import jax
 
-    from jaxmotion import action_metrics, experiment, validity
+    from jaxmotion import experiment, validity
     from jaxmotion.predictor import load
 
     g = load(args.gsps_run)
@@ -112,11 +112,7 @@ def main(argv: list[str] | None = None) -> int:
         except ValueError as e:
             raise SystemExit(str(e)) from None
         if id(prep) not in actions:  # the classifier and the true futures, once per dataset
-            c = action_metrics.ClassifierConfig(num_steps=cfg.action_classifier_steps)
-            actions[id(prep)] = action = (
-                action_metrics.evaluator(ds, prep.y, prep.seq_index, prep.starts, config=c, batch=cfg.eval_batch)
-                if args.action_metrics else None
-            )  # fmt: skip
+            actions[id(prep)] = action = experiment.action_evaluator(cfg, prep) if args.action_metrics else None
             gt = [prep.y[s : s + cfg.eval_batch, None] for s in range(0, len(prep.y), cfg.eval_batch)]
             rows.append({"run": ds.name, "sampler": "ground truth", "K": 1, "n_windows": len(prep.windows),
                          **score(v, gt, action)})

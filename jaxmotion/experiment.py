@@ -310,6 +310,16 @@ def predict_chunks(fn: Predictor, x: np.ndarray, key: jax.Array, batch: int, *, 
         yield distributed.gather(out)[:c]
 
 
+def action_evaluator(cfg: Config, prep: Prepared) -> action_metrics.ActionEvaluator | None:
+    """Returns the CMD / FID evaluator of `prep`'s test windows (`prepare`'s result), or None without labels.
+
+    The classifier is trained once per dataset at `cfg.action_classifier_steps` and cached
+    (`jaxmotion.action_metrics`); its feature batches follow `cfg.eval_batch`.
+    """
+    c = action_metrics.ClassifierConfig(num_steps=cfg.action_classifier_steps)
+    return action_metrics.evaluator(prep.dataset, prep.y, prep.seq_index, prep.starts, config=c, batch=cfg.eval_batch)
+
+
 def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str | None = None) -> list[dict]:
     """Returns and writes (`workdir/metrics.json`) one PROTOCOL sec. 5 record per (predictor, K).
 
@@ -346,10 +356,7 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
         write_manifest(cfg, ds, workdir)
     records = []
     extra_fn, record_fields = method.evaluation_hooks(cfg, ds, params)
-    action = None  # CMD and FID (`Config.action_metrics`): only where the dataset has action labels
-    if cfg.action_metrics:
-        c = action_metrics.ClassifierConfig(num_steps=cfg.action_classifier_steps)
-        action = action_metrics.evaluator(ds, y, prep.seq_index, prep.starts, config=c, batch=cfg.eval_batch)
+    action = action_evaluator(cfg, prep) if cfg.action_metrics else None
     if action is not None:
         record_fields = {**record_fields, "action_classifier": action.summary()}
     for k in cfg.eval_k:

@@ -21,8 +21,8 @@ import math
 import os
 import time
 import warnings
-from pathlib import Path
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import jax
@@ -37,6 +37,7 @@ from tqdm.auto import tqdm
 from jaxmotion import distributed
 from jaxmotion.distributed import data_mesh
 from jaxmotion.errors import CheckpointError
+from jaxmotion.formats.atomic import write_text_atomic
 
 
 class TrainState(struct.PyTreeNode):
@@ -328,9 +329,7 @@ def _replace_log_after(log: Path, step: int) -> None:
     if replaced:
         with open(log.with_name("log.replaced.jsonl"), "a") as f:
             f.write("".join(line if line.endswith("\n") else line + "\n" for line in replaced))
-        tmp = log.with_name(log.name + ".tmp")
-        tmp.write_text("".join(keep))
-        os.replace(tmp, log)
+        write_text_atomic(log, "".join(keep))
 
 
 def restore_params(workdir: str | Path, state: TrainState) -> TrainState:
