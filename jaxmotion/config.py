@@ -72,6 +72,11 @@ class Config:
     # `action_classifier_steps` Adam steps and cached under `~/.cache/jaxmotion/action_classifiers/`.
     action_metrics: bool = True
     action_classifier_steps: int = 1000
+    # The networks' weight products (jaxmotion/nn/precision.py): "float32" (default), or "bf16":
+    # bfloat16 operands with float32 accumulation, everything else float32. Faster only on a CPU with
+    # bfloat16 instructions (or a GPU / TPU); its effect on speed and on the metrics is measured in
+    # benchmarks/README.md. GSPS's flow prior, MotionMap and the metrics keep float32 always.
+    precision: str = "float32"
 
 
 def load_config(path: str | Path | None) -> Config:
@@ -119,7 +124,8 @@ def _unknown_fields(path: Path, namespace: dict) -> list[str]:
 
 
 _CHOICES = {"train_sampler": ("windows", "sequences"), "mm_deviation": (None, "divsamp", "comusion", "gsps"),
-            "mm_ground_truth": (None, "test", "train", "motionmap-test", "motionmap-train")}
+            "mm_ground_truth": (None, "test", "train", "motionmap-test", "motionmap-train"),
+            "precision": ("float32", "bf16")}  # nn/precision.PRECISIONS (that module imports jax; tested equal)
 # `Config`'s intervals: (field, rule, what the rule asks), checked once the field's type is right.
 _CONFIG_RULES = (
     *((n, lambda v: v >= 1, ">= 1") for n in ("ckpt_every", "log_every", "eval_batch")),

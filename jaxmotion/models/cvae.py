@@ -30,6 +30,7 @@ from jaxmotion.dct import dct, idct
 from jaxmotion.nn.gru import GRU, GRUCell, gru_update
 from jaxmotion.nn.linear import Dense
 from jaxmotion.nn.mlp import MLP
+from jaxmotion.nn.precision import matmul
 
 LATENT_KINDS = ("vector", "dct")
 
@@ -77,6 +78,7 @@ class GRUCVAE(nn.Module):
     # Dense layers' initialisation: "torch" (the references' nn.Linear) or "flax" (nn.Dense). GRUs
     # always follow PyTorch's rule (nn/gru.py).
     dense_init: str = "torch"
+    precision: str = "float32"  # every weight product's: "float32" or "bf16" (nn/precision.py)
 
     @property
     def latent_shape(self) -> tuple[int, ...]:
@@ -89,16 +91,16 @@ class GRUCVAE(nn.Module):
     def setup(self):
         if self.latent not in LATENT_KINDS:
             raise ValueError(f"{type(self).__name__}.latent must be one of {LATENT_KINDS}, got {self.latent!r}")
-        self.x_rnn = GRU(self.nh_rnn)
-        self.e_rnn = GRU(self.nh_rnn)
-        init = self.dense_init
-        self.e_mlp = MLP(self.nh_mlp, dense_init=init)
-        self.e_mu = Dense(self.nz, rule=init)
-        self.e_logvar = Dense(self.nz, rule=init)
-        self.drnn_mlp = MLP(tuple(self.nh_mlp) + (self.nh_rnn,), dense_init=init)
-        self.d_cell = GRUCell(self.nh_rnn)
-        self.d_mlp = MLP(self.nh_mlp, dense_init=init)
-        self.d_out = Dense(self.dim, rule=init)
+        init, mm = self.dense_init, self.precision
+        self.x_rnn = GRU(self.nh_rnn, mm)
+        self.e_rnn = GRU(self.nh_rnn, mm)
+        self.e_mlp = MLP(self.nh_mlp, dense_init=init, precision=mm)
+        self.e_mu = Dense(self.nz, rule=init, precision=mm)
+        self.e_logvar = Dense(self.nz, rule=init, precision=mm)
+        self.drnn_mlp = MLP(tuple(self.nh_mlp) + (self.nh_rnn,), dense_init=init, precision=mm)
+        self.d_cell = GRUCell(self.nh_rnn, mm)
+        self.d_mlp = MLP(self.nh_mlp, dense_init=init, precision=mm)
+        self.d_out = Dense(self.dim, rule=init, precision=mm)
 
     def encode_x(self, x: Float[ArrayLike, "b t_his d"]) -> Float[Array, "b h"]:
         """Returns the last hidden state of the past encoder GRU."""
@@ -158,13 +160,14 @@ class GRUCVAE(nn.Module):
         h_x = inputs.h_x[0]
         static = h_x if self.latent == "dct" else jnp.concatenate([h_x, z], axis=-1)
         n_static = static.shape[-1]
-        gi_static = static @ w["weight_ih"][:n_static] + w["bias_ih"]  # (b, 3 nh)
+        mm = self.precision
+        gi_static = matmul(static, w["weight_ih"][:n_static], mm) + w["bias_ih"]  # (b, 3 nh)
         w_dyn = w["weight_ih"][n_static:]
         per_step = inputs.z_t if self.latent == "dct" else None
 
         def step(mdl, c, z_t):
             dyn = c.y_prev if z_t is None else jnp.concatenate([z_t, c.y_prev], axis=-1)
-            h = gru_update(gi_static + dyn @ w_dyn, c.h @ w["weight_hh"] + w["bias_hh"], c.h)
+            h = gru_update(gi_static + matmul(dyn, w_dyn, mm), matmul(c.h, w["weight_hh"], mm) + w["bias_hh"], c.h)
             y = mdl.d_out(mdl.d_mlp(h))
             if self.residual:
                 y = y + c.y_prev

@@ -186,13 +186,15 @@ class DivSampCVAE(nn.Module):
     num_residual: int = 4
     dense_init: str = "torch"
     bn_running_var: str = "unbiased"
+    precision: str = "float32"  # every weight product's: "float32" or "bf16" (nn/precision.py)
 
     def setup(self):
-        self.enc = GCLStack(self.hidden, self.num_residual, self.bn_running_var)
-        self.e_mu = Dense(self.nz, rule=self.dense_init)
-        self.e_logvar = Dense(self.nz, rule=self.dense_init)
-        self.dec = GCLStack(self.hidden, self.num_residual, self.bn_running_var)
-        self.d_out = GraphConv(3 * self.n_dct)
+        mm = self.precision
+        self.enc = GCLStack(self.hidden, self.num_residual, self.bn_running_var, mm)
+        self.e_mu = Dense(self.nz, rule=self.dense_init, precision=mm)
+        self.e_logvar = Dense(self.nz, rule=self.dense_init, precision=mm)
+        self.dec = GCLStack(self.hidden, self.num_residual, self.bn_running_var, mm)
+        self.d_out = GraphConv(3 * self.n_dct, precision=mm)
 
     def encode(self, cx: Float[ArrayLike, "b j c"], cw: Float[ArrayLike, "b j c"], *, train: bool):
         """Returns `(mu, logvar)` of q(z | X, Y) from the coefficients of the padded history and of the window."""
@@ -219,14 +221,15 @@ class GammaHead(nn.Module):
     out: int
     dense_init: str = "torch"
     bn_running_var: str = "unbiased"
+    precision: str = "float32"  # as DivSampCVAE.precision
 
     @nn.compact
     def __call__(self, p: Float[ArrayLike, "... n"], *, train: bool) -> Float[Array, "... o"]:
-        h = Dense(self.nh, rule=self.dense_init, name="dense_0")(p)
+        h = Dense(self.nh, rule=self.dense_init, precision=self.precision, name="dense_0")(p)
         # Statistics over all leading axes, i.e. over the b * K points, like the release's
         # BatchNorm1d on the (b * nk, n_b) matrix.
         h = BatchNorm(not train, 0.9, 1e-5, self.bn_running_var, name="bn")(h)
-        return Dense(self.out, rule=self.dense_init, name="dense_1")(jnp.tanh(h))
+        return Dense(self.out, rule=self.dense_init, precision=self.precision, name="dense_1")(jnp.tanh(h))
 
 
 class DivSampSampler(nn.Module):
@@ -244,6 +247,7 @@ class DivSampSampler(nn.Module):
     tau: float = 1.0
     dense_init: str = "torch"
     bn_running_var: str = "unbiased"
+    precision: str = "float32"  # as DivSampCVAE.precision; the coefficients' product w @ B stays float32
 
     @nn.compact
     def __call__(self, cx: Float[ArrayLike, "b j c"], key: jax.Array, k: int, *, train: bool, shared_eps: bool = True):
@@ -251,8 +255,9 @@ class DivSampSampler(nn.Module):
         or K independent draws with `shared_eps=False` (the release at test time)."""
         b = cx.shape[0]
         m = self.num_bases
-        h = GCLStack(self.hidden, self.num_residual, self.bn_running_var, name="condition_enc")(cx, train=train).reshape(b, -1)
-        base = Dense(m * self.base_dim, rule=self.dense_init, name="bases")(h)
+        mm = self.precision
+        h = GCLStack(self.hidden, self.num_residual, self.bn_running_var, mm, name="condition_enc")(cx, train=train).reshape(b, -1)
+        base = Dense(m * self.base_dim, rule=self.dense_init, precision=mm, name="bases")(h)
         base = BatchNorm(not train, 0.9, 1e-5, self.bn_running_var, name="bases_bn")(base)
         if self.base_tanh:
             base = jnp.tanh(base)
@@ -272,23 +277,23 @@ class DivSampSampler(nn.Module):
             sample = lambda kk, lg: sample_coefficients(kk, k, m, kind=self.coefficients, tau=self.tau, logits=lg)
         w = jax.vmap(sample)(jax.random.split(k_w, b), logits)  # (b, K, M), rows on the simplex
         p = w @ base  # (b, K, n_b): K points of the auxiliary space (DivSamp Eq. (11))
-        mean = GammaHead(self.nh, self.nz, self.dense_init, self.bn_running_var, name="mean")(p, train=train)
-        logvar = GammaHead(self.nh, self.nz, self.dense_init, self.bn_running_var, name="logvar")(p, train=train)
+        mean = GammaHead(self.nh, self.nz, self.dense_init, self.bn_running_var, mm, name="mean")(p, train=train)
+        logvar = GammaHead(self.nh, self.nz, self.dense_init, self.bn_running_var, mm, name="logvar")(p, train=train)
         eps = jax.random.normal(k_eps, (b, 1 if shared_eps else k, self.nz))
         return jnp.exp(0.5 * logvar) * eps + mean, mean, logvar  # DivSamp Eq. (12)
 
 
-def cvae_from_config(c: DivSampConfig) -> DivSampCVAE:
+def cvae_from_config(c: DivSampConfig, precision: str = "float32") -> DivSampCVAE:
     return DivSampCVAE(n_dct=c.n_dct, hidden=c.hidden, nz=c.nz, num_residual=c.cvae_residual, dense_init=c.dense_init,
-        bn_running_var=c.bn_running_var,
+        bn_running_var=c.bn_running_var, precision=precision,
     )
 
 
-def sampler_from_config(c: DivSampConfig) -> DivSampSampler:
+def sampler_from_config(c: DivSampConfig, precision: str = "float32") -> DivSampSampler:
     return DivSampSampler(
         nz=c.nz, hidden=c.hidden, num_residual=c.sampler_residual, num_bases=c.num_bases, base_dim=c.base_dim,
         nh=c.nh, base_tanh=c.base_tanh, coefficients=c.coefficients, pi=c.pi, tau=c.tau, dense_init=c.dense_init,
-        bn_running_var=c.bn_running_var,
+        bn_running_var=c.bn_running_var, precision=precision,
     )
 
 

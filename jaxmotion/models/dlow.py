@@ -96,9 +96,11 @@ class DLowCVAE(GRUCVAE):
     residual: bool = False
 
 
-def cvae_model(c: CVAEConfig, dim: int, horizon: int) -> DLowCVAE:
-    """Returns the CVAE module a `CVAEConfig` describes."""
-    return DLowCVAE(dim=dim, horizon=horizon, nz=c.nz, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp), dense_init=c.dense_init)
+def cvae_model(c: CVAEConfig, dim: int, horizon: int, precision: str = "float32") -> DLowCVAE:
+    """Returns the CVAE module a `CVAEConfig` describes (`precision`: its products', nn/precision.py)."""
+    return DLowCVAE(
+        dim=dim, horizon=horizon, nz=c.nz, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp), dense_init=c.dense_init, precision=precision
+    )
 
 
 class QTrunk(nn.Module):
@@ -114,15 +116,17 @@ class QTrunk(nn.Module):
     nh_rnn: int = 128
     nh_mlp: tuple[int, ...] = (1024, 512)
     dense_init: str = "torch"  # "torch" (the releases' nn.Linear) or "flax" (nn.Dense)
+    precision: str = "float32"  # every weight product's: "float32" or "bf16" (nn/precision.py)
 
     @nn.compact
     def __call__(self, x: Float[ArrayLike, "b t_his d"]):
-        h = GRU(self.nh_rnn, name="x_rnn")(x)[:, -1]
-        h = MLP(self.nh_mlp, dense_init=self.dense_init, name="mlp")(h)
+        mm = self.precision
+        h = GRU(self.nh_rnn, mm, name="x_rnn")(x)[:, -1]
+        h = MLP(self.nh_mlp, dense_init=self.dense_init, precision=mm, name="mlp")(h)
         # One Dense with n_heads * nk * nz outputs is exactly n_heads unshared linear heads.
         shape = (-1, self.n_heads, self.nk, self.nz)
-        a = Dense(self.n_heads * self.nk * self.nz, rule=self.dense_init, name="head_A")(h).reshape(shape)
-        b = Dense(self.n_heads * self.nk * self.nz, rule=self.dense_init, name="head_b")(h).reshape(shape)
+        a = Dense(self.n_heads * self.nk * self.nz, rule=self.dense_init, precision=mm, name="head_A")(h).reshape(shape)
+        b = Dense(self.n_heads * self.nk * self.nz, rule=self.dense_init, precision=mm, name="head_b")(h).reshape(shape)
         return a, b
 
 
@@ -138,9 +142,9 @@ class DLowQ(QTrunk):
         return a * eps[:, None, :] + b, a, b
 
 
-def q_model(c: QConfig, nz: int, nk: int) -> DLowQ:
+def q_model(c: QConfig, nz: int, nk: int, precision: str = "float32") -> DLowQ:
     """Returns the Q network of a `QConfig` for `nk` samples of an `nz`-dimensional latent."""
-    return DLowQ(nz=nz, nk=nk, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp), dense_init=c.dense_init)
+    return DLowQ(nz=nz, nk=nk, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp), dense_init=c.dense_init, precision=precision)
 
 
 def sample_dlow(cvae: DLowCVAE, cvae_params, q: DLowQ, q_params, x, key: jax.Array) -> Float[Array, "b nk t_pred d"]:

@@ -477,13 +477,14 @@ class PartGCN(nn.Module):
     hidden: int = 256
     num_stage: int = 4
     bn_running_var: str = "unbiased"  # PyTorch's (the release); "biased" is flax's (nn/batchnorm.py)
+    precision: str = "float32"  # the graph convolutions' products: "float32" or "bf16" (nn/precision.py)
 
     @nn.compact
     def __call__(self, h: Float[Array, "b j f"], z: Float[Array, "b z"], *, train: bool) -> Float[Array, "b j f"]:
         zj = jnp.broadcast_to(z[:, None, :], h.shape[:2] + z.shape[-1:])
         x = jnp.concatenate([h, zj], axis=-1)
-        y = GCLStack(self.hidden, self.num_stage, self.bn_running_var, name="gcn")(x, train=train)
-        y = GraphConv(x.shape[-1], name="out")(y) + x
+        y = GCLStack(self.hidden, self.num_stage, self.bn_running_var, self.precision, name="gcn")(x, train=train)
+        y = GraphConv(x.shape[-1], precision=self.precision, name="out")(y) + x
         return y[..., : h.shape[-1]]
 
 
@@ -494,12 +495,13 @@ class GSPSGenerator(nn.Module):
     hidden: int = 256
     num_stage: int = 4
     bn_running_var: str = "unbiased"
+    precision: str = "float32"  # as PartGCN.precision (the flow prior keeps float32 always)
 
     @nn.compact
     def __call__(self, nodes: Float[Array, "b j f"], z: Float[Array, "b p z"], *, train: bool) -> Float[Array, "b j f"]:
         y = nodes
         for i, part in enumerate(self.parts):
-            out = PartGCN(self.hidden, self.num_stage, self.bn_running_var, name=f"part_{i}")(y, z[:, i], train=train)
+            out = PartGCN(self.hidden, self.num_stage, self.bn_running_var, self.precision, name=f"part_{i}")(y, z[:, i], train=train)
             idx = np.asarray(part)
             y = y.at[:, idx].set(out[:, idx])
         return y

@@ -131,11 +131,11 @@ class MojoCVAE(GRUCVAE):
     residual: bool = True
 
 
-def cvae_model(cfg: MojoConfig, dim: int, horizon: int) -> MojoCVAE:
-    """Returns the CVAE module a `MojoConfig` describes."""
+def cvae_model(cfg: MojoConfig, dim: int, horizon: int, precision: str = "float32") -> MojoCVAE:
+    """Returns the CVAE module a `MojoConfig` describes (`precision`: its products', nn/precision.py)."""
     return MojoCVAE(
         dim=dim, horizon=horizon, nz=cfg.nz, nh_rnn=cfg.nh_rnn, nh_mlp=tuple(cfg.nh_mlp),
-        latent=cfg.latent, residual=cfg.residual, dense_init=cfg.dense_init,
+        latent=cfg.latent, residual=cfg.residual, dense_init=cfg.dense_init, precision=precision,
     )
 
 
@@ -191,27 +191,28 @@ class MojoQ(nn.Module):
     nh_mlp: tuple[int, ...] = (1024, 512)
     shared_trunk: bool = True
     dense_init: str = "torch"
+    precision: str = "float32"  # as QTrunk.precision
 
     @nn.compact
     def __call__(self, x: Float[ArrayLike, "b t_his d"], eps: Float[ArrayLike, "b l z"]):
         if self.shared_trunk:
-            a, b = QTrunk(self.nz, self.nk, self.n_low, self.nh_rnn, tuple(self.nh_mlp), self.dense_init, name="q")(x)
+            a, b = QTrunk(self.nz, self.nk, self.n_low, self.nh_rnn, tuple(self.nh_mlp), self.dense_init, self.precision, name="q")(x)
         else:
             bands = nn.vmap(
                 QTrunk, variable_axes={"params": 0}, split_rngs={"params": True},
                 in_axes=None, out_axes=1, axis_size=self.n_low,
             )
-            a, b = bands(self.nz, self.nk, 1, self.nh_rnn, tuple(self.nh_mlp), self.dense_init, name="q")(x)
+            a, b = bands(self.nz, self.nk, 1, self.nh_rnn, tuple(self.nh_mlp), self.dense_init, self.precision, name="q")(x)
             a, b = a[:, :, 0], b[:, :, 0]
         z = jnp.exp(0.5 * a) * eps[:, :, None, :] + b  # (b, L, nk, nz)
         return jnp.swapaxes(z, 1, 2), a, b
 
 
-def q_model(cfg: MojoConfig, horizon: int, nk: int) -> MojoQ:
+def q_model(cfg: MojoConfig, horizon: int, nk: int, precision: str = "float32") -> MojoQ:
     """Returns the per-band DLow module of a `MojoConfig` for `nk` samples."""
     return MojoQ(
         nz=cfg.nz, nk=nk, n_low=num_low_bands(cfg, horizon), nh_rnn=cfg.q_nh_rnn,
-        nh_mlp=tuple(cfg.q_nh_mlp), shared_trunk=cfg.q_shared_trunk, dense_init=cfg.dense_init,
+        nh_mlp=tuple(cfg.q_nh_mlp), shared_trunk=cfg.q_shared_trunk, dense_init=cfg.dense_init, precision=precision,
     )
 
 

@@ -22,6 +22,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
 from jaxmotion.nn.batchnorm import BatchNorm
+from jaxmotion.nn.precision import einsum, matmul
 
 
 def _uniform(bound: float):
@@ -33,6 +34,7 @@ class GraphConv(nn.Module):
 
     features: int
     use_bias: bool = True
+    precision: str = "float32"  # the products': "float32" or "bf16" (nn/precision.py)
 
     @nn.compact
     def __call__(self, h: Float[ArrayLike, "... j f"]) -> Float[Array, "... j o"]:
@@ -40,7 +42,7 @@ class GraphConv(nn.Module):
         init = _uniform(1.0 / float(self.features) ** 0.5)
         w = self.param("kernel", init, (f_in, self.features))
         a = self.param("adjacency", init, (j, j))
-        out = jnp.einsum("ij,...jo->...io", a, h @ w)
+        out = einsum("ij,...jo->...io", a, matmul(h, w, self.precision), self.precision)
         if self.use_bias:
             out = out + self.param("bias", init, (self.features,))
         return out
@@ -55,10 +57,11 @@ class GCLBlock(nn.Module):
 
     features: int
     running_var: str = "unbiased"
+    precision: str = "float32"  # as GraphConv.precision
 
     @nn.compact
     def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool) -> Float[Array, "... j o"]:
-        x = GraphConv(self.features, name="gc")(h)
+        x = GraphConv(self.features, precision=self.precision, name="gc")(h)
         shape = x.shape
         x = x.reshape(shape[:-2] + (shape[-2] * shape[-1],))
         x = BatchNorm(use_running_average=not train, momentum=0.9, epsilon=1e-5, running_var=self.running_var, name="bn")(x)
@@ -70,11 +73,12 @@ class ResidualGCLBlock(nn.Module):
 
     features: int
     running_var: str = "unbiased"
+    precision: str = "float32"  # as GraphConv.precision
 
     @nn.compact
     def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool) -> Float[Array, "... j f"]:
-        x = GCLBlock(h.shape[-1], self.running_var, name="gcl_0")(h, train=train)
-        x = GCLBlock(self.features, self.running_var, name="gcl_1")(x, train=train)
+        x = GCLBlock(h.shape[-1], self.running_var, self.precision, name="gcl_0")(h, train=train)
+        x = GCLBlock(self.features, self.running_var, self.precision, name="gcl_1")(x, train=train)
         return x + h
 
 
@@ -89,10 +93,11 @@ class GCLStack(nn.Module):
     features: int
     num_residual: int
     running_var: str = "unbiased"
+    precision: str = "float32"  # as GraphConv.precision
 
     @nn.compact
     def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool) -> Float[Array, "... j o"]:
-        h = GCLBlock(self.features, self.running_var, name="gcl_in")(h, train=train)
+        h = GCLBlock(self.features, self.running_var, self.precision, name="gcl_in")(h, train=train)
         for i in range(self.num_residual):
-            h = ResidualGCLBlock(self.features, self.running_var, name=f"res_{i}")(h, train=train)
+            h = ResidualGCLBlock(self.features, self.running_var, self.precision, name=f"res_{i}")(h, train=train)
         return h

@@ -12,6 +12,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
+from jaxmotion.nn.precision import matmul
+
 
 def gru_update(
     gi: Float[ArrayLike, "b g"], gh: Float[ArrayLike, "b g"], h: Float[ArrayLike, "b h"]
@@ -41,6 +43,7 @@ class GRUCell(nn.Module):
     """
 
     features: int
+    precision: str = "float32"  # the gate products': "float32" or "bf16" (nn/precision.py)
 
     @nn.compact
     def __call__(self, h: Float[ArrayLike, "b h"], x: Float[ArrayLike, "b i"]) -> Float[Array, "b h"]:
@@ -51,28 +54,31 @@ class GRUCell(nn.Module):
         w_hh = self.param("weight_hh", init((f, 3 * f)))
         b_ih = self.param("bias_ih", init((3 * f,)))
         b_hh = self.param("bias_hh", init((3 * f,)))
-        return gru_update(x @ w_ih + b_ih, h @ w_hh + b_hh, h)
+        mm = self.precision
+        return gru_update(matmul(x, w_ih, mm) + b_ih, matmul(h, w_hh, mm) + b_hh, h)
 
 
 class GRU(nn.Module):
     """Returns all hidden states `(batch, time, features)` of a GRU run by `lax.scan` over time (parameters `cell/...`)."""
 
     features: int
+    precision: str = "float32"  # as GRUCell.precision
 
     @nn.compact
     def __call__(self, x: Float[ArrayLike, "b t i"], h0: Float[ArrayLike, "b h"] | None = None) -> Float[Array, "b t h"]:
         if h0 is None:
             h0 = jnp.zeros(x.shape[:-2] + (self.features,), x.dtype)
 
-        cell = GRUCell(self.features, name="cell")
+        cell = GRUCell(self.features, self.precision, name="cell")
         cell(h0, x[:, 0])  # creates the parameters at init; XLA drops the unused result
         p = cell.variables["params"]
         # The input half of every gate does not depend on h: one (b * t, i) x (i, 3h) product for
         # all steps (as cuDNN / oneDNN GRUs do) leaves only h @ W_hh inside the sequential loop.
-        gi = jnp.swapaxes(x @ p["weight_ih"] + p["bias_ih"], 0, 1)
+        mm = self.precision
+        gi = jnp.swapaxes(matmul(x, p["weight_ih"], mm) + p["bias_ih"], 0, 1)
 
         def step(h, gi_t):
-            h = gru_update(gi_t, h @ p["weight_hh"] + p["bias_hh"], h)
+            h = gru_update(gi_t, matmul(h, p["weight_hh"], mm) + p["bias_hh"], h)
             return h, h
 
         _, hs = jax.lax.scan(step, h0, gi)

@@ -18,6 +18,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
+from jaxmotion.nn.precision import matmul
+
 DENSE_INITS = ("torch", "flax")
 
 
@@ -42,6 +44,7 @@ class Dense(nn.Module):
 
     features: int
     rule: str = "torch"
+    precision: str = "float32"  # the product's: "float32" or "bf16" (nn/precision.py)
 
     @nn.compact
     def __call__(self, x: Float[ArrayLike, "... i"]) -> Float[Array, "... o"]:
@@ -49,4 +52,6 @@ class Dense(nn.Module):
         k_init, b_init = initializers(self.rule, fan_in)
         kernel = self.param("kernel", k_init, (fan_in, self.features), jnp.float32)
         bias = self.param("bias", b_init, (self.features,), jnp.float32)
-        return jax.lax.dot_general(x, kernel, (((x.ndim - 1,), (0,)), ((), ()))) + bias
+        if self.precision == "float32":
+            return jax.lax.dot_general(x, kernel, (((x.ndim - 1,), (0,)), ((), ()))) + bias
+        return matmul(x, kernel, self.precision) + bias

@@ -16,10 +16,11 @@ class MLP(nn.Module):
     features: tuple[int, ...]
     activation: str = "tanh"  # any jax.nn name, or "tanh"
     dense_init: str = "torch"  # "torch" (PyTorch nn.Linear) or "flax" (nn.Dense); see nn/linear.py
+    precision: str = "float32"  # the products': "float32" or "bf16" (nn/precision.py)
 
     @nn.compact
     def __call__(self, x: Float[ArrayLike, "... i"]) -> Float[Array, "... o"]:
         act = getattr(jax.nn, self.activation) if self.activation != "tanh" else jnp.tanh
         for i, f in enumerate(self.features):
-            x = act(Dense(f, rule=self.dense_init, name=f"dense_{i}")(x))
+            x = act(Dense(f, rule=self.dense_init, precision=self.precision, name=f"dense_{i}")(x))
         return x

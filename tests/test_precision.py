@@ -1,0 +1,80 @@
+"""`Config.precision`: bfloat16 weight products with float32 accumulation (jaxmotion/nn/precision.py)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxmotion.config import _CHOICES, Config, validate
+from jaxmotion.errors import ConfigError
+from jaxmotion.models import dlow, divsamp, gsps
+from jaxmotion.nn import precision as P
+
+
+def test_config_choices_are_the_modules():
+    assert _CHOICES["precision"] == P.PRECISIONS
+    with pytest.raises(ConfigError, match="precision must be one of"):
+        validate(dataclasses.replace(Config(), precision="fp16"))
+    with pytest.raises(ValueError, match="precision must be one of"):
+        P.matmul(jnp.ones((2, 3)), jnp.ones((3, 4)), "fp16")
+
+
+def test_bf16_product_rounds_the_operands_and_accumulates_in_float32():
+    x = jax.random.normal(jax.random.key(0), (5, 7, 300))
+    w = jax.random.normal(jax.random.key(1), (300, 64))
+    f32, bf = P.matmul(x, w), P.matmul(x, w, "bf16")
+    assert f32.dtype == bf.dtype == jnp.float32
+    np.testing.assert_array_equal(f32, x @ w)  # float32 is the plain product
+    # The exact product of the bfloat16-rounded operands, summed in float64: float32 accumulation
+    # leaves only float32 rounding on top (a bfloat16 accumulator would be off by ~1e-2 relative).
+    xr, wr = (np.asarray(a.astype(jnp.bfloat16).astype(jnp.float32), np.float64) for a in (x, w))
+    np.testing.assert_allclose(bf, xr @ wr, rtol=1e-4, atol=1e-4)
+    assert 1e-4 < float(jnp.abs(bf - f32).max() / jnp.abs(f32).max()) < 2e-2  # it did round
+    e32, ebf = P.einsum("ij,...jo->...io", w[:7, :7], x[..., :4]), P.einsum("ij,...jo->...io", w[:7, :7], x[..., :4], "bf16")
+    np.testing.assert_allclose(ebf, e32, rtol=0, atol=0.05 * float(jnp.abs(e32).max()))
+
+
+def _bf16_dots(fn, *args) -> int:
+    return jax.jit(fn).lower(*args).as_text().count("bf16")
+
+
+def test_dlow_models_compute_in_bf16_with_the_same_parameters():
+    x = jax.random.normal(jax.random.key(0), (4, 8, 12))
+    y = jax.random.normal(jax.random.key(1), (4, 10, 12))
+    c = dlow.CVAEConfig(nz=8, nh_rnn=16, nh_mlp=(32, 16))
+    m32, mbf = dlow.cvae_model(c, 12, 10), dlow.cvae_model(c, 12, 10, "bf16")
+    p = jax.jit(m32.init)(jax.random.key(2), x, y)
+    assert jax.tree.structure(p) == jax.tree.structure(jax.eval_shape(mbf.init, jax.random.key(2), x, y))
+    z = jax.random.normal(jax.random.key(3), (4, 5, 8))
+    out32, outbf = (jax.jit(lambda z, m=m: dlow.decode_k(m, p, x, z))(z) for m in (m32, mbf))
+    assert outbf.dtype == jnp.float32
+    np.testing.assert_allclose(outbf, out32, atol=0.05 * float(jnp.abs(out32).max()))
+    assert not np.array_equal(outbf, out32)
+    assert _bf16_dots(lambda z: dlow.decode_k(mbf, p, x, z), z) > 0
+    assert _bf16_dots(lambda z: dlow.decode_k(m32, p, x, z), z) == 0
+    q = dlow.q_model(dlow.QConfig(nh_rnn=16, nh_mlp=(32,)), 8, 5, "bf16")
+    qp = jax.jit(q.init)(jax.random.key(4), x, jnp.zeros((4, 8)))
+    g = jax.jit(jax.grad(lambda qp: jnp.sum(q.apply(qp, x, jnp.ones((4, 8)))[0] ** 2)))(qp)
+    assert all(bool(jnp.all(jnp.isfinite(v))) and v.dtype == jnp.float32 for v in jax.tree.leaves(g))
+
+
+def test_divsamp_and_gsps_graph_convolutions_compute_in_bf16():
+    d = divsamp.DivSampConfig(n_dct=4, hidden=16, nz=8, cvae_residual=1, sampler_residual=1, num_bases=5, base_dim=8, nh=8)
+    cx = jax.random.normal(jax.random.key(0), (3, 6, 12))
+    m32, mbf = divsamp.cvae_from_config(d), divsamp.cvae_from_config(d, "bf16")
+    v = jax.jit(lambda k: m32.init(k, cx, cx, jax.random.key(2), train=False))(jax.random.key(1))
+    a, b = (jax.jit(lambda cx, m=m: m.apply(v, cx, cx, train=False)[0])(cx) for m in (m32, mbf))
+    np.testing.assert_allclose(b, a, atol=0.05 * float(jnp.abs(a).max()))
+    assert _bf16_dots(lambda cx: mbf.apply(v, cx, cx, train=False)[0], cx) > 0
+    s = divsamp.sampler_from_config(d, "bf16")
+    sv = jax.jit(lambda k: s.init(k, cx, jax.random.key(4), 5, train=False))(jax.random.key(3))
+    assert bool(jnp.all(jnp.isfinite(jax.jit(lambda cx: s.apply(sv, cx, jax.random.key(5), 5, train=False)[0])(cx))))
+    gen = gsps.GSPSGenerator(parts=((0, 1, 2), (3, 4, 5)), hidden=16, num_stage=1, precision="bf16")
+    z = jax.random.normal(jax.random.key(6), (3, 2, 4))
+    g32 = gsps.GSPSGenerator(parts=((0, 1, 2), (3, 4, 5)), hidden=16, num_stage=1)
+    gv = jax.jit(lambda k: g32.init(k, cx, z, train=False))(jax.random.key(7))
+    assert _bf16_dots(lambda cx: gen.apply(gv, cx, z, train=False), cx) > 0
