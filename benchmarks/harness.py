@@ -39,6 +39,7 @@ class Settings:
     repeats: int = 7
     models: tuple[str, ...] = MODELS
     seed: int = 0
+    precision: str = "float32"  # jaxmotion's products (Config.precision); the PyTorch twins stay float32
 
     @classmethod
     def quick(cls, **kw) -> "Settings":

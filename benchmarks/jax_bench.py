@@ -77,7 +77,7 @@ class Builders:
     # --- DLow ------------------------------------------------------------------------------------
     def dlow(self, c: Case):
         s = self.s
-        cvae = dlow.DLowCVAE(dim=s.dim, horizon=c.t_pred)
+        cvae = dlow.DLowCVAE(dim=s.dim, horizon=c.t_pred, precision=s.precision)
         p = cvae.init(jax.random.key(0), self.data(1, s.t_his), self.data(1, c.t_pred), jax.random.key(1))
         if c.kind == "train_cvae":
             tx = optax.adam(1e-3)
@@ -87,7 +87,7 @@ class Builders:
         x = self.data(c.batch, s.t_his)
         if c.kind == "sample_prior":
             return _sample_runner(lambda p, x, key: dlow.sample_prior(cvae, p, x, key, c.k), p, x, jax.random.key(2))
-        q = dlow.DLowQ(nk=c.k)
+        q = dlow.DLowQ(nk=c.k, precision=s.precision)
         qp = q.init(jax.random.key(3), x[:1], jnp.zeros((1, cvae.nz)))
         if c.kind == "sample":
             return _sample_runner(lambda p, qp, x, key: dlow.sample_dlow(cvae, p, q, qp, x, key), p, qp, x, jax.random.key(2))
@@ -101,7 +101,7 @@ class Builders:
     def mojo(self, c: Case):
         s = self.s
         cfg = mojo.MojoConfig()
-        model = mojo.cvae_model(cfg, s.dim, c.t_pred)
+        model = mojo.cvae_model(cfg, s.dim, c.t_pred, s.precision)
         p = model.init(jax.random.key(0), self.data(1, s.t_his), self.data(1, c.t_pred), jax.random.key(1))
         if c.kind == "train_cvae":
             tx = optax.adam(cfg.lr)
@@ -111,7 +111,7 @@ class Builders:
         x = self.data(c.batch, s.t_his)
         if c.kind == "sample_prior":
             return _sample_runner(lambda p, x, key: mojo.sample_prior(model, p, x, key, c.k), p, x, jax.random.key(2))
-        q = mojo.q_model(cfg, c.t_pred, c.k)
+        q = mojo.q_model(cfg, c.t_pred, c.k, s.precision)
         qp = q.init(jax.random.key(3), x[:1], jnp.zeros((1, q.n_low, cfg.nz)))
         if c.kind == "sample":
             return _sample_runner(lambda p, qp, x, key: mojo.sample_mojo(model, p, q, qp, x, key), p, qp, x, jax.random.key(2))
@@ -124,7 +124,7 @@ class Builders:
     def divsamp(self, c: Case):
         s = self.s
         d = divsamp.DivSampConfig()
-        cvae = divsamp.cvae_from_config(d)
+        cvae = divsamp.cvae_from_config(d, s.precision)
         cx0 = jnp.zeros((2, s.dim // 3, 3 * d.n_dct))
         v = dict(cvae.init(jax.random.key(0), cx0, cx0, jax.random.key(1), train=False))
         if c.kind == "train_cvae":
@@ -137,7 +137,7 @@ class Builders:
         if c.kind == "sample_prior":
             fn = lambda v, x, key: divsamp.sample_prior(cvae, v, x, key, c.k, t_pred=c.t_pred)
             return _sample_runner(fn, v, x, jax.random.key(2))
-        sampler = divsamp.sampler_from_config(d)
+        sampler = divsamp.sampler_from_config(d, s.precision)
         sv = dict(sampler.init(jax.random.key(3), cx0, jax.random.key(4), 2, train=False))
         if c.kind == "sample":
             fn = lambda v, sv, x, key: divsamp.sample_divsamp(cvae, v, sampler, sv, x, key, c.k, t_pred=c.t_pred)
@@ -153,7 +153,8 @@ class Builders:
     def gsps(self, c: Case):
         s, g = self.s, gsps.GSPSConfig()
         parents, roles, parts, bounds = gsps_skeleton(s.dim)
-        gen = gsps.GSPSGenerator(parts=parts, hidden=g.hidden, num_stage=g.num_stage, bn_running_var=g.bn_running_var)
+        gen = gsps.GSPSGenerator(parts=parts, hidden=g.hidden, num_stage=g.num_stage, bn_running_var=g.bn_running_var,
+                                 precision=s.precision)
         nodes0 = jnp.zeros((2, s.dim // 3, 3 * g.n_pre))
         v = dict(gen.init(jax.random.key(0), nodes0, jnp.zeros((2, len(parts), g.nz)), train=False))
         if c.kind == "train_generator":
