@@ -34,8 +34,29 @@ def test_bf16_product_rounds_the_operands_and_accumulates_in_float32():
     xr, wr = (np.asarray(a.astype(jnp.bfloat16).astype(jnp.float32), np.float64) for a in (x, w))
     np.testing.assert_allclose(bf, xr @ wr, rtol=1e-4, atol=1e-4)
     assert 1e-4 < float(jnp.abs(bf - f32).max() / jnp.abs(f32).max()) < 2e-2  # it did round
-    e32, ebf = P.einsum("ij,...jo->...io", w[:7, :7], x[..., :4]), P.einsum("ij,...jo->...io", w[:7, :7], x[..., :4], "bf16")
+    e32, ebf = P.graph_matmul(w[:7, :7], x[..., :4]), P.graph_matmul(w[:7, :7], x[..., :4], "bf16")
+    np.testing.assert_array_equal(e32, jnp.einsum("ij,...jo->...io", w[:7, :7], x[..., :4]))
     np.testing.assert_allclose(ebf, e32, rtol=0, atol=0.05 * float(jnp.abs(e32).max()))
+
+
+@pytest.mark.parametrize("fn", ["matmul", "graph_matmul"])
+def test_bf16_gradients_are_bf16_products_of_the_rounded_operands(fn):
+    a = jax.random.normal(jax.random.key(0), (4, 6, 6) if fn == "matmul" else (6, 6))
+    b = jax.random.normal(jax.random.key(1), (6, 5) if fn == "matmul" else (4, 6, 5))
+    ct = jax.random.normal(jax.random.key(2), (4, 6, 5))
+    f = getattr(P, fn)
+    out, vjp = jax.vjp(lambda a, b: f(a, b, "bf16"), a, b)
+    da, db = vjp(ct)
+    # The reference: float32 gradients of the float32 product at the bfloat16-rounded operands and cotangent.
+    r = lambda v: v.astype(jnp.bfloat16).astype(jnp.float32)  # noqa: E731
+    _, vjp32 = jax.vjp(lambda a, b: f(a, b), r(a), r(b))
+    ra, rb = vjp32(r(ct))
+    assert da.dtype == db.dtype == jnp.float32
+    np.testing.assert_allclose(da, ra, rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(db, rb, rtol=1e-5, atol=1e-5)
+    hlo = jax.jit(jax.grad(lambda a, b: jnp.sum(f(a, b, "bf16") ** 2), argnums=(0, 1))).lower(a, b).as_text()
+    dots = [line.split(":")[-1].split("->")[0] for line in hlo.splitlines() if "dot_general" in line]
+    assert len(dots) >= 3 and all("xf32" not in operands for operands in dots)  # forward and backward: bf16 operands
 
 
 def _bf16_dots(fn, *args) -> int:

@@ -22,7 +22,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
 from jaxmotion.nn.batchnorm import BatchNorm
-from jaxmotion.nn.precision import einsum, matmul
+from jaxmotion.nn.precision import graph_matmul, matmul
 
 
 def _uniform(bound: float):
@@ -42,7 +42,7 @@ class GraphConv(nn.Module):
         init = _uniform(1.0 / float(self.features) ** 0.5)
         w = self.param("kernel", init, (f_in, self.features))
         a = self.param("adjacency", init, (j, j))
-        out = einsum("ij,...jo->...io", a, matmul(h, w, self.precision), self.precision)
+        out = graph_matmul(a, matmul(h, w, self.precision), self.precision)
         if self.use_bias:
             out = out + self.param("bias", init, (self.features,))
         return out

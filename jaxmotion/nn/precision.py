@@ -30,20 +30,75 @@ def check(precision: str, what: str = "precision") -> str:
     return precision
 
 
+_BF16, _F32 = jnp.bfloat16, jnp.float32
+
+
+def _dot(a, b, dims):
+    return jax.lax.dot_general(a, b, dims, preferred_element_type=_F32)
+
+
+def _last_first(x_ndim: int):
+    return (((x_ndim - 1,), (0,)), ((), ()))
+
+
+# The gradients' products in bfloat16 too. Differentiating the plain bfloat16 product would up-cast
+# its operands and compute both backward products in float32 (jax's transpose rule follows the
+# float32 cotangent), adding conversions and saving nothing; here the backward pass rounds the
+# cotangent to bfloat16 and keeps the forward pass's bfloat16 operands as residuals (half the memory).
+@jax.custom_vjp
+def _matmul_bf16(x, w):
+    return _dot(x.astype(_BF16), w.astype(_BF16), _last_first(x.ndim))
+
+
+def _matmul_bf16_fwd(x, w):
+    xb, wb = x.astype(_BF16), w.astype(_BF16)
+    return _dot(xb, wb, _last_first(x.ndim)), (xb, wb)
+
+
+def _matmul_bf16_bwd(res, ct):
+    xb, wb = res
+    cb = ct.astype(_BF16)
+    dx = _dot(cb, wb, (((ct.ndim - 1,), (1,)), ((), ())))  # ct @ w.T: (..., i)
+    lead = tuple(range(ct.ndim - 1))
+    dw = _dot(xb, cb, ((lead, lead), ((), ())))  # sum over the leading axes of x^T ct: (i, o)
+    return dx, dw
+
+
+_matmul_bf16.defvjp(_matmul_bf16_fwd, _matmul_bf16_bwd)
+
+
+@jax.custom_vjp
+def _graph_bf16(a, h):
+    return jnp.einsum("ij,...jo->...io", a.astype(_BF16), h.astype(_BF16), preferred_element_type=_F32)
+
+
+def _graph_bf16_fwd(a, h):
+    ab, hb = a.astype(_BF16), h.astype(_BF16)
+    return jnp.einsum("ij,...jo->...io", ab, hb, preferred_element_type=_F32), (ab, hb)
+
+
+def _graph_bf16_bwd(res, ct):
+    ab, hb = res
+    cb = ct.astype(_BF16)
+    da = jnp.einsum("...io,...jo->ij", cb, hb, preferred_element_type=_F32)
+    dh = jnp.einsum("ij,...io->...jo", ab, cb, preferred_element_type=_F32)
+    return da, dh
+
+
+_graph_bf16.defvjp(_graph_bf16_fwd, _graph_bf16_bwd)
+
+
 def matmul(x: Float[ArrayLike, "... i"], w: Float[ArrayLike, "i o"], precision: str = "float32") -> Float[Array, "... o"]:
     """Returns `x @ w` (`w` 2-D): in float32, or with bfloat16 operands and float32 accumulation."""
     if precision == "float32":
         return x @ w
     check(precision)
-    x, w = jnp.asarray(x), jnp.asarray(w)
-    dims = (((x.ndim - 1,), (0,)), ((), ()))
-    return jax.lax.dot_general(x.astype(jnp.bfloat16), w.astype(jnp.bfloat16), dims, preferred_element_type=jnp.float32)
+    return _matmul_bf16(jnp.asarray(x, _F32), jnp.asarray(w, _F32))
 
 
-def einsum(spec: str, a: ArrayLike, b: ArrayLike, precision: str = "float32") -> Array:
-    """Returns `jnp.einsum(spec, a, b)`: in float32, or with bfloat16 operands and float32 accumulation."""
+def graph_matmul(a: Float[ArrayLike, "j j"], h: Float[ArrayLike, "... j o"], precision: str = "float32") -> Float[Array, "... j o"]:
+    """Returns `A H` per leading index, `einsum("ij,...jo->...io")` (a graph convolution's adjacency product)."""
     if precision == "float32":
-        return jnp.einsum(spec, a, b)
+        return jnp.einsum("ij,...jo->...io", a, h)
     check(precision)
-    bf = jnp.bfloat16
-    return jnp.einsum(spec, jnp.asarray(a).astype(bf), jnp.asarray(b).astype(bf), preferred_element_type=jnp.float32)
+    return _graph_bf16(jnp.asarray(a, _F32), jnp.asarray(h, _F32))
