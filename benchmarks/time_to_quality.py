@@ -2,6 +2,7 @@
 
     flock /tmp/jaxmotion-heavy.lock python benchmarks/time_to_quality.py           # ~12 min on the 2-core CPU
     python benchmarks/time_to_quality.py --steps 40 --every 20 --val-windows 64        # smoke test
+    python benchmarks/time_to_quality.py --seed 1 --out /tmp/ttq_seed1.json            # another initialisation, noise and batch stream
 
 Both sides train the CVAE of `experiments/configs/dlow_bandai.py` (nz 128, beta 0.3, lambda_v 1000,
 Adam at lr 1e-3 with the config's schedule over `--steps`, batch 64) on the same stream of training
@@ -71,15 +72,15 @@ def jax_worker(args) -> dict:
     from jaxmotion.models import dlow
     from jaxmotion.train.loop import create_state, make_train_step
 
-    cfg, c, sampler, val, ds = _setup(args.data, args.val_windows)
+    _, c, sampler, val, ds = _setup(args.data, args.val_windows)
     t_his = ds.t_his
     cvae = dlow.cvae_model(c, ds.dim, ds.t_pred, args.precision)
-    params = cvae.init(jax.random.key(cfg.seed), jnp.zeros((1, t_his, ds.dim)), jnp.zeros((1, ds.t_pred, ds.dim)), jax.random.key(0))
+    params = cvae.init(jax.random.key(args.seed), jnp.zeros((1, t_his, ds.dim)), jnp.zeros((1, ds.t_pred, ds.dim)), jax.random.key(0))
     tx = adam(c.lr, args.steps, c.lr_fix_fraction)
     loss = functools.partial(dlow.cvae_loss, cvae, t_his=t_his, beta=c.beta, lambda_v=c.lambda_v)
     step = jax.jit(make_train_step(lambda p, _f, b, k: loss(p, b, k), tx), donate_argnums=0)
     recon = jax.jit(lambda p, x, y: cvae.apply(p, x, y)[0])  # no key: z = mu
-    key = jax.random.key(cfg.seed)
+    key = jax.random.key(args.seed)
     box = [create_state(params, tx)]
 
     def train_step(i: int, batch: np.ndarray):
@@ -102,9 +103,9 @@ def torch_worker(args) -> dict:
     from benchmarks.torch_ref import dlow as tdlow
     from jaxmotion.train.loop import lr_schedule
 
-    cfg, c, sampler, val, ds = _setup(args.data, args.val_windows)
+    _, c, sampler, val, ds = _setup(args.data, args.val_windows)
     t_his = ds.t_his
-    torch.manual_seed(cfg.seed)
+    torch.manual_seed(args.seed)
     cvae = tdlow.DLowCVAE(ds.dim, ds.t_pred, nz=c.nz, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp))
     opt = torch.optim.Adam(cvae.parameters(), c.lr)
     sched = lr_schedule(c.lr, args.steps, c.lr_fix_fraction)  # the same schedule, step by step
@@ -165,11 +166,13 @@ def main(argv=None):
     ap.add_argument("--every", type=int, default=100, help="validation every N steps")
     ap.add_argument("--val-windows", type=int, default=512)
     ap.add_argument("--data", type=Path, default=DATA)
-    ap.add_argument("--data-seed", type=int, default=0, help="seed of the training-batch stream (both sides)")
+    ap.add_argument("--seed", type=int, default=0, help="seed of each side's initialisation and noise draws")
+    ap.add_argument("--data-seed", type=int, default=None, help="seed of the training-batch stream, the same on both sides (default: --seed)")
     ap.add_argument("--precision", choices=("float32", "bf16"), default="float32", help="jaxmotion's Config.precision")
     ap.add_argument("--worker", choices=("jax", "torch"), help=argparse.SUPPRESS)
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "time_to_quality.json")
     args = ap.parse_args(argv)
+    args.data_seed = args.seed if args.data_seed is None else args.data_seed
     if not args.data.is_dir():
         raise SystemExit(f"time_to_quality: no Bandai-Namco-2 folder at {args.data} (see ../shared/README.md)")
     if args.worker:
@@ -180,7 +183,7 @@ def main(argv=None):
 
     m = machine()
     print(f"CPU: {m['cpu']}, {m['logical_cpus']} logical CPUs; {args.steps} steps, validation every {args.every} "
-          f"on {args.val_windows} windows")
+          f"on {args.val_windows} windows; seed {args.seed}, batch stream {args.data_seed}")
     results, t0 = {}, time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         for name in ("jax", "torch"):
@@ -188,7 +191,7 @@ def main(argv=None):
             out = Path(tmp) / f"{name}.json"
             cmd = [sys.executable, __file__, "--worker", name, "--out", str(out), "--steps", str(args.steps),
                    "--every", str(args.every), "--val-windows", str(args.val_windows), "--data", str(args.data),
-                   "--data-seed", str(args.data_seed), "--precision", args.precision]
+                   "--seed", str(args.seed), "--data-seed", str(args.data_seed), "--precision", args.precision]
             subprocess.run(cmd, check=True)
             results[name] = json.loads(out.read_text())
     j, t = results["jax"], results["torch"]
