@@ -1,6 +1,6 @@
 """How much of a real training step is host work: the bound on "several optimiser steps per jitted call".
 
-    flock /tmp/jaxmotion-heavy.lock python benchmarks/loop_overhead.py                  # ~2 min on the 2-core CPU
+    flock /tmp/jaxmotion-heavy.lock python benchmarks/loop_overhead.py                  # ~5 min on the 2-core CPU
     python benchmarks/loop_overhead.py --config experiments/configs/divsamp_bandai.py --data ../shared/data/bandai-namco-2
 
 Issue 18 lists "several optimiser steps per jitted call (`lax.scan` over steps with batches sampled on
@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import statistics
 import sys
 import tempfile
 import time
@@ -36,16 +35,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.harness import machine  # noqa: E402
-
-
-def _median_ms(fn, n: int) -> float:
-    times = []
-    for _ in range(n):
-        t = time.perf_counter()
-        fn()
-        times.append((time.perf_counter() - t) * 1e3)
-    return statistics.median(times)
+from benchmarks.harness import machine, measure  # noqa: E402
 
 
 def measure_stage(stage, trained: dict, steps: int, ckpt_every: int) -> dict:
@@ -66,23 +56,21 @@ def measure_stage(stage, trained: dict, steps: int, ckpt_every: int) -> dict:
     def place(i):
         return distributed.global_batch(batches(np.random.default_rng([stage.data_seed, i])), sharding)
 
-    host_ms = _median_ms(lambda: jax.block_until_ready(place(0)), steps)
+    host_ms = measure(lambda: jax.block_until_ready(place(0)), warmup=0, repeats=steps)["median_s"] * 1e3
 
-    state = distributed.replicate(runner.init_state(stage, trained), NamedSharding(mesh, PartitionSpec()))
+    box = [distributed.replicate(runner.init_state(stage, trained), NamedSharding(mesh, PartitionSpec()))]
     step_fn = jax.jit(train_step, donate_argnums=0)  # as fit runs it
     batch, key = place(0), jax.random.key(0)
-    state = jax.block_until_ready(step_fn(state, batch, key)[0])
-    times = []
-    for _ in range(steps):
-        t = time.perf_counter()
-        state = jax.block_until_ready(step_fn(state, batch, key)[0])
-        times.append((time.perf_counter() - t) * 1e3)
-    step_ms = statistics.median(times)
+
+    def run_step():  # the donated state is stepped on, as in a training loop
+        box[0] = jax.block_until_ready(step_fn(box[0], batch, key)[0])
+
+    step_ms = measure(run_step, warmup=1, repeats=steps)["median_s"] * 1e3
 
     with tempfile.TemporaryDirectory() as d:
         kw = dict(seed=stage.data_seed, ckpt_every=ckpt_every, log_every=10, desc=stage.name)
         loop.fit(runner.init_state(stage, trained), train_step, batches, num_steps=3, workdir=Path(d) / "warm", **kw)
-        n = 10 * (steps // 10 + 1)
+        n = 10 * max(steps // 10 + 1, 2)  # at least two log lines to time between
         out = loop.fit(runner.init_state(stage, trained), train_step, batches, num_steps=n, workdir=Path(d) / "fit", **kw)
         # The log's `time_s` is taken after fetching the step's metrics (which waits for it): the time
         # between the first and the last log line is `n - 10` steps of the loop, compilation and the
