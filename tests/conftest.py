@@ -1,6 +1,38 @@
-"""Fixtures shared by several test modules: one tiny trained DLow run per session (tests/test_cli.py, tests/test_viewer.py)."""
+"""Fixtures shared by several test modules: one tiny trained DLow run per session (tests/test_cli.py, tests/test_viewer.py);
+and one persistent XLA compilation cache per test session, shared by the pytest workers and the processes tests start."""
+
+import os
+import shutil
+import tempfile
 
 import pytest
+
+_CACHE_ENV = "JAXMOTION_TEST_COMPILATION_CACHE"
+
+
+def pytest_configure(config):
+    """Points jax's persistent compilation cache at one fresh folder for this test session.
+
+    Most of a test's time on the 2-core CPU is compiling, and many tests compile the same programs
+    again: a resumed run recompiles its training step, every end-to-end test compiles the same
+    evaluation, subprocesses start cold. The first process (pytest itself, before its xdist workers
+    start) makes the folder and puts it in the environment, so the workers and every subprocess a
+    test starts inherit it; it is removed at the end. A folder set by the user
+    (`JAX_COMPILATION_CACHE_DIR`) is used as it is. The cache changes no result: a hit loads the
+    executable XLA compiled for the same program.
+    """
+    if "JAX_COMPILATION_CACHE_DIR" not in os.environ:
+        os.environ[_CACHE_ENV] = os.environ["JAX_COMPILATION_CACHE_DIR"] = tempfile.mkdtemp(prefix="jaxmotion-test-xla-")
+    os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.2")
+    import jax
+
+    jax.config.update("jax_compilation_cache_dir", os.environ["JAX_COMPILATION_CACHE_DIR"])
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", float(os.environ["JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"]))
+
+
+def pytest_unconfigure(config):
+    if not hasattr(config, "workerinput") and _CACHE_ENV in os.environ:  # the process that made it
+        shutil.rmtree(os.environ.pop(_CACHE_ENV), ignore_errors=True)
 
 # DLow on the synthetic data on a tiny budget: trains, evaluates and reports in seconds.
 TINY = """
