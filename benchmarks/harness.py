@@ -40,6 +40,7 @@ class Settings:
     models: tuple[str, ...] = MODELS
     seed: int = 0
     precision: str = "float32"  # jaxmotion's products (Config.precision); the PyTorch twins stay float32
+    decoder_remat: bool = True  # GRUCVAE.decoder_remat of DLow's and MOJO's CVAEs (benchmarks/ab.py --ab decoder_remat)
 
     @classmethod
     def quick(cls, **kw) -> "Settings":

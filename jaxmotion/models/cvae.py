@@ -79,6 +79,13 @@ class GRUCVAE(nn.Module):
     # always follow PyTorch's rule (nn/gru.py).
     dense_init: str = "torch"
     precision: str = "float32"  # every weight product's: "float32" or "bf16" (nn/precision.py)
+    # The decoder loop's backward pass keeps each step's matrix products and recomputes the gates'
+    # elementwise work (jax.checkpoint_policies.dots_saveable) instead of stacking every
+    # intermediate of every step (issue 18's "scan residual copies"). Same numbers; DLow's and
+    # MOJO's second-stage steps (the gradient through the K = 50 decoders) measured 1.12x faster,
+    # the CVAE steps unchanged (`python benchmarks/ab.py --ab decoder_remat`; benchmarks/README.md).
+    # The same policy on the encoders' GRU (nn/gru.py) measured slower, so it is not used there.
+    decoder_remat: bool = True
 
     @property
     def latent_shape(self) -> tuple[int, ...]:
@@ -173,12 +180,8 @@ class GRUCVAE(nn.Module):
                 y = y + c.y_prev
             return DecodeCarry(h, y), y
 
-        # The backward pass keeps each step's matrix products and recomputes its gates' elementwise
-        # work instead of stacking every intermediate of every step (issue 18's "scan residual
-        # copies"): DLow's and MOJO's second-stage steps (the gradient through the K = 50 decoders)
-        # measured 1.12x faster, the CVAE steps unchanged (benchmarks/README.md, "Recomputing the
-        # decoder's elementwise work"). The same policy on the encoders' GRU measured slower.
-        step = nn.remat(step, policy=jax.checkpoint_policies.dots_saveable, prevent_cse=False)
+        if self.decoder_remat:
+            step = nn.remat(step, policy=jax.checkpoint_policies.dots_saveable, prevent_cse=False)
         scan = nn.scan(step, variable_broadcast="params", split_rngs={"params": False}, length=self.horizon, out_axes=1)
         _, ys = scan(self, carry, per_step)
         return ys
