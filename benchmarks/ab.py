@@ -35,10 +35,10 @@ sys.path.insert(0, str(ROOT))
 from benchmarks.harness import Settings, machine, plan  # noqa: E402
 from benchmarks.peak import cpu_flags, has_bf16  # noqa: E402
 
-# Each knob: the Settings field, its (A, B) values and their labels in the output.
+# Each knob (a field of harness.Settings): its (A, B) values and their labels in the output.
 KNOBS = {
-    "precision": ("precision", ("float32", "bf16"), ("float32", "bf16")),
-    "decoder_remat": ("decoder_remat", (False, True), ("stacked", "remat")),
+    "precision": (("float32", "bf16"), ("float32", "bf16")),
+    "decoder_remat": ((False, True), ("stacked", "remat")),
 }
 DEFAULT_CASES = {"precision": (
     "dlow/train_cvae/b64", "dlow/train_sampler/b16/k50", "dlow/sample/b64/k50",
@@ -64,7 +64,7 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, default=5, help="timed calls per setting per round")
     ap.add_argument("--out", type=Path, default=None, help="default: benchmarks/results/<ab>_ab.json")
     args = ap.parse_args(argv)
-    field, values, labels = KNOBS[args.ab]
+    values, labels = KNOBS[args.ab]
     args.cases = args.cases or list(DEFAULT_CASES[args.ab])
     args.out = args.out or ROOT / "benchmarks" / "results" / f"{args.ab}_ab.json"
     import jax
@@ -78,7 +78,7 @@ def main(argv=None):
         raise SystemExit(f"ab: no case of the plan matches {args.cases}; names look like {plan(base)[0].name}")
     print(f"CPU: {m['cpu']}, {m['logical_cpus']} logical CPUs, bfloat16 instructions: {'yes' if m['bf16'] else 'no'}; "
           f"jax {jax.__version__}; {args.ab}: {labels[0]} (A) vs {labels[1]} (B); {args.rounds} rounds x {args.repeats} calls each")
-    builders = {lab: Builders(dataclasses.replace(base, **{field: v})) for lab, v in zip(labels, values)}
+    builders = {lab: Builders(dataclasses.replace(base, **{args.ab: v})) for lab, v in zip(labels, values)}
     rows, t_start = [], time.perf_counter()
     for c in cases:
         runs, compile_s = {}, {}

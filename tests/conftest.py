@@ -27,9 +27,10 @@ def pytest_configure(config):
         os.environ[_CACHE_ENV] = os.environ["JAX_COMPILATION_CACHE_DIR"] = tempfile.mkdtemp(prefix="jaxmotion-test-xla-")
     os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.2")
     # XLA's cheapest backend optimisation level: the tests' programs are tiny, so LLVM's optimisation
-    # passes cost more than they save (tests/test_distributed.py measured it first). XLA's own graph
-    # optimisations still run; the numbers a test checks do not depend on it. Set the flag yourself
-    # (any `--xla_backend_optimization_level=N` in XLA_FLAGS) to test with another level.
+    # passes cost more than they save (measured: see the module docstring; tests/test_distributed.py
+    # already used this level for its subprocesses). XLA's own graph optimisations still run; the
+    # numbers a test checks do not depend on it. Set the flag yourself (any
+    # `--xla_backend_optimization_level=N` in XLA_FLAGS) to test with another level.
     flags = os.environ.get("XLA_FLAGS", "")
     if "xla_backend_optimization_level" not in flags:
         os.environ["XLA_FLAGS"] = (flags + " --xla_backend_optimization_level=0").strip()
