@@ -2,12 +2,15 @@
 
     flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py                          # --ab precision, ~6 min on the 2-core CPU
     flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab decoder_remat       # ~4 min
+    flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab decoder_unroll      # ~4 min
     python benchmarks/ab.py --cases dlow/train_cvae --repeats 3                      # a subset
 
 `--ab precision`: float32 against bfloat16 products (`Config.precision = "bf16"`,
 jaxmotion/nn/precision.py rounds both operands of every weight product to bfloat16 and accumulates
 in float32). `--ab decoder_remat`: the GRU decoders' backward pass stacking every intermediate of
 every step against recomputing the gates' elementwise work (`GRUCVAE.decoder_remat`, DLow and MOJO).
+`--ab decoder_unroll`: the same decoders' `lax.scan` loop rolled against unrolled 4 steps at a time
+(`GRUCVAE.decoder_unroll`).
 Each case of `benchmarks/run.py`'s plan named in `--cases` is built twice by the benchmark's own
 builders (`jax_bench.Builders`, the same sizes and functions), once per setting, and the two are
 timed alternately, `--rounds` rounds of `--repeats` calls each, so that drift in the machine's speed
@@ -39,6 +42,7 @@ from benchmarks.peak import cpu_flags, has_bf16  # noqa: E402
 KNOBS = {
     "precision": (("float32", "bf16"), ("float32", "bf16")),
     "decoder_remat": ((False, True), ("stacked", "remat")),
+    "decoder_unroll": ((1, 4), ("rolled", "unroll 4")),
 }
 DEFAULT_CASES = {"precision": (
     "dlow/train_cvae/b64", "dlow/train_sampler/b16/k50", "dlow/sample/b64/k50",
@@ -49,6 +53,7 @@ DEFAULT_CASES = {"precision": (
     "dlow/train_cvae/b64", "dlow/train_sampler/b16/k50", "dlow/sample/b64/k50",
     "mojo/train_cvae/b64", "mojo/train_sampler/b16/k50", "mojo/sample/b64/k50",
 )}
+DEFAULT_CASES["decoder_unroll"] = DEFAULT_CASES["decoder_remat"]
 
 
 def _matches(name: str, patterns: list[str]) -> bool:

@@ -65,7 +65,8 @@ def eval_target(run: Path, config: Path, data: Path, precision: str = "float32",
     """Returns the records (metrics.json) of `jaxmotion eval` on a copy of `run`, after printing their timings."""
     from jaxmotion.cli import main
 
-    ref = {(r["method"], r["K"]): r["metrics"] for r in json.loads((run / "metrics.json").read_text())}
+    stored = run / "metrics.json"  # the run's own evaluation, if it has one: the reference values
+    ref = {(r["method"], r["K"]): r["metrics"] for r in json.loads(stored.read_text())} if stored.exists() else {}
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp) / run.name
         shutil.copytree(run, work, ignore=shutil.ignore_patterns("*.png", "*.gif", "metrics.json"))
@@ -154,6 +155,11 @@ def main(argv=None):
     ap.add_argument("--data", type=Path, default=DATA)
     ap.add_argument("--dlow-run", type=Path, default=RUNS / "dlow_s0")
     ap.add_argument("--divsamp-run", type=Path, default=RUNS / "divsamp_s0")
+    configs = ROOT / "experiments" / "configs"
+    ap.add_argument("--dlow-config", type=Path, default=configs / "dlow_bandai.py",
+                    help="the config the DLow run was trained with (another budget: the same evaluation)")
+    ap.add_argument("--divsamp-config", type=Path, default=configs / "divsamp_bandai.py",
+                    help="the config the DivSamp run was trained with")
     ap.add_argument("--k", type=int, default=1000, help="K of part (b)")
     ap.add_argument("--windows", type=int, default=200, help="test windows of part (b)")
     ap.add_argument("--methods", nargs="+", default=["divsamp"], help="predictors of part (b) (e.g. divsamp divsamp_cvae)")
@@ -174,8 +180,7 @@ def main(argv=None):
     print(f"CPU: {m['cpu']}, {m['logical_cpus']} logical CPUs, {m['memory_gib']} GiB, bfloat16 instructions: "
           f"{'yes' if m['bf16'] else 'no'}; jax {jax.__version__}, devices {[str(d) for d in jax.devices()]}")
     t0 = time.perf_counter()
-    configs = ROOT / "experiments" / "configs"
-    dlow_cfg = configs / "dlow_bandai.py"
+    dlow_cfg = args.dlow_config
     part_a, part_b = args.only in (None, "eval"), args.only in (None, "k1000")
     ds = full = None
     if part_b or part_a and not args.no_breakdown:
@@ -191,7 +196,7 @@ def main(argv=None):
             if not args.no_breakdown:
                 sampling_breakdown(args.dlow_run, dlow_cfg, ds, full, records, prec)
         if part_b:
-            rows = k1000_target(args.divsamp_run, configs / "divsamp_bandai.py", ds, full, args.k, args.windows,
+            rows = k1000_target(args.divsamp_run, args.divsamp_config, ds, full, args.k, args.windows,
                                 args.methods, previous, prec)
             if prec == "float32":  # the later precisions' reference: this run's float32 figures
                 previous = {"what": "this run's float32 figures", "k_point": rows}

@@ -77,7 +77,8 @@ class Builders:
     # --- DLow ------------------------------------------------------------------------------------
     def dlow(self, c: Case):
         s = self.s
-        cvae = dlow.DLowCVAE(dim=s.dim, horizon=c.t_pred, precision=s.precision, decoder_remat=s.decoder_remat)
+        cvae = dlow.DLowCVAE(dim=s.dim, horizon=c.t_pred, precision=s.precision, decoder_remat=s.decoder_remat,
+                              decoder_unroll=s.decoder_unroll)
         p = cvae.init(jax.random.key(0), self.data(1, s.t_his), self.data(1, c.t_pred), jax.random.key(1))
         if c.kind == "train_cvae":
             tx = optax.adam(1e-3)
@@ -101,7 +102,8 @@ class Builders:
     def mojo(self, c: Case):
         s = self.s
         cfg = mojo.MojoConfig()
-        model = mojo.cvae_model(cfg, s.dim, c.t_pred, s.precision).clone(decoder_remat=s.decoder_remat)
+        model = mojo.cvae_model(cfg, s.dim, c.t_pred, s.precision).clone(decoder_remat=s.decoder_remat,
+                                                                                 decoder_unroll=s.decoder_unroll)
         p = model.init(jax.random.key(0), self.data(1, s.t_his), self.data(1, c.t_pred), jax.random.key(1))
         if c.kind == "train_cvae":
             tx = optax.adam(cfg.lr)

@@ -363,9 +363,13 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
         for name, fn in method.predictors(cfg, ds, params, k).items():
             t0 = time.perf_counter()
             recalls, extras, action_parts = [], [], []
+            # K copies of one future: scored on one copy, every metric unchanged (`Method.deterministic`).
+            copies = k if name in method.deterministic else 1
 
             def chunks():
                 for i, p in enumerate(predict_chunks(fn, x, jax.random.key(cfg.seed + 7), cfg.eval_batch)):
+                    if copies > 1:
+                        p = p[:, :1]
                     if modes is not None:
                         sl = slice(i * cfg.eval_batch, i * cfg.eval_batch + p.shape[0])
                         n, P = p.shape[0], modes.modes.shape[1]
@@ -380,7 +384,7 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
                     if extra_fn is not None:
                         extras.append(extra_fn(ds, p, y[i * cfg.eval_batch : i * cfg.eval_batch + p.shape[0]]))
                     if action is not None:
-                        action_parts.append(action.chunk(p))
+                        action_parts.append(action.chunk(p, copies))
                     yield p
 
             with CompileTimer() as compiling:  # the predictor's first call, and the metrics' at a new K, compile

@@ -92,6 +92,10 @@ class Method:
       (PROTOCOL sec. 2: the futures of test windows with a similar last observed pose) or "train"
       (the futures of training windows, a pool of pseudo ground truth); "test" is the protocol.
     - `curve_skip`: predictor names left out of the learning curves (constant or slow ones).
+    - `deterministic`: predictor names whose K futures are K copies of one (zero-velocity). Evaluation
+      scores one copy: every metric is then the same as on the K copies (APD 0; the min and median over
+      K of equal terms are that term; MM errors, mode recall and the `extra_metrics`, which are means
+      over the K samples, unchanged; FID's feature moments counted K times), at 1/K of the cost.
 
     During training, learning curves call `predictors` with the stages trained so far (the current
     one included, later ones absent): return the predictors those allow, or raise `KeyError` for
@@ -111,6 +115,7 @@ class Method:
     description: str = ""
     # Predictors left out of the learning curves (`Config.curve_every`): constant or slow baselines.
     curve_skip: tuple[str, ...] = ("zero_velocity",)
+    deterministic: tuple[str, ...] = ("zero_velocity",)
 
     def __post_init__(self):
         if self.reference_futures not in ("test", "train"):

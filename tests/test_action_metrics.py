@@ -173,6 +173,8 @@ def test_classifier_tells_still_from_moving_in_a_few_dozen_steps():
     # Deterministic features: zero initial state, no dropout.
     f1, f2 = ac.predict(model, params, y)[1], ac.predict(model, params, y[:50])[1]
     np.testing.assert_array_equal(f1[:50], f2)
+    # `predict` runs the GRU loop unrolled: the features of the rolled loop, to float32 rounding.
+    np.testing.assert_allclose(f1, np.asarray(model.apply(params, jnp.asarray(y))[1]), rtol=1e-5, atol=1e-6)
     assert f1.shape == (200, 8) and np.all(np.abs(f1) < 1)
 
 
@@ -191,6 +193,9 @@ def _predictors(cfg, ds, params, k):
 
 
 register(Method(name="action_metrics_test", config_type=dict, stages=lambda cfg, prep: [], predictors=_predictors), replace=True)
+# The same, with zero-velocity scored on all K of its copies rather than on one (`Method.deterministic`).
+register(Method(name="action_metrics_test_all_copies", config_type=dict, stages=lambda cfg, prep: [], predictors=_predictors,
+                deterministic=()), replace=True)
 
 
 def test_evaluate_writes_cmd_and_fid_where_the_dataset_has_labels(tmp_path, monkeypatch, capsys):
@@ -233,3 +238,18 @@ def test_evaluate_writes_cmd_and_fid_where_the_dataset_has_labels(tmp_path, monk
     unlabelled = dataclasses.replace(prep, dataset=dataclasses.replace(ds, info={**ds.info, "action_labels": False}))
     for r in ex.evaluate(cfg, unlabelled, {}, tmp_path / "c"):
         assert "CMD" not in r["metrics"] and "FID" not in r["metrics"] and "action_classifier" not in r["config"]
+
+
+def test_a_deterministic_predictor_scored_on_one_copy_gets_the_metrics_of_all_k(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    cfg = Config(method="action_metrics_test", method_config={}, eval_k=(3,), max_test_windows=40, eval_batch=16,
+                 action_classifier_steps=30)  # fmt: skip
+    prep = ex.prepare(ex.load_data(cfg), cfg.max_test_windows)
+    one = {r["method"]: r["metrics"] for r in ex.evaluate(cfg, prep, {}, tmp_path / "one")}
+    every = {r["method"]: r["metrics"] for r in ex.evaluate(
+        dataclasses.replace(cfg, method="action_metrics_test_all_copies"), prep, {}, tmp_path / "all")}
+    assert one["zero_velocity"]["APD"] == every["zero_velocity"]["APD"] == 0
+    # ADE ... MMFDE, their medians, mode recall (the synthetic data knows its modes), CMD and FID.
+    assert {"mode_recall", "CMD", "FID", "MMADE"} <= set(one["zero_velocity"])
+    assert one["zero_velocity"] == pytest.approx(every["zero_velocity"], rel=1e-5, abs=1e-7)
+    assert one["jitter"] == every["jitter"]  # a random predictor is scored on every sample either way

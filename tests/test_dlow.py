@@ -62,8 +62,9 @@ def test_decoder_scan_equals_step_by_step_decoding(cvae):
         np.testing.assert_array_equal(np.asarray(carry.y_prev), np.asarray(y_t))
 
 
-def test_decoder_remat_gives_the_same_futures_and_gradients(cvae):
-    """`decoder_remat` (recompute the gates' elementwise work in the backward pass) changes speed, not numbers."""
+def test_decoder_remat_and_unroll_give_the_same_futures_and_gradients(cvae):
+    """`decoder_remat` (recompute the gates' elementwise work in the backward pass) and `decoder_unroll`
+    (the loop unrolled) change speed, not numbers."""
     model, params, x, _ = cvae
     z = jax.random.normal(jax.random.key(4), (B, 8))
     target = jax.random.normal(jax.random.key(5), (B, T_PRED, D))
@@ -72,11 +73,13 @@ def test_decoder_remat_gives_the_same_futures_and_gradients(cvae):
         loss = lambda p, z: jnp.sum((m.apply(p, x, z, method=dlow.DLowCVAE.decode) - target) ** 2)  # noqa: E731
         return jax.jit(jax.value_and_grad(loss, argnums=(0, 1)))(params, z)
 
-    assert model.decoder_remat  # the default
-    (l_remat, g_remat), (l_stack, g_stack) = loss_and_grads(model), loss_and_grads(model.clone(decoder_remat=False))
-    np.testing.assert_allclose(float(l_remat), float(l_stack), rtol=1e-6)
-    for a, b in zip(jax.tree.leaves(g_remat), jax.tree.leaves(g_stack), strict=True):
-        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-6)
+    assert model.decoder_remat and model.decoder_unroll == 1  # the defaults
+    l_remat, g_remat = loss_and_grads(model)
+    for other in (model.clone(decoder_remat=False), model.clone(decoder_unroll=4), model.clone(decoder_unroll=T_PRED)):
+        l_other, g_other = loss_and_grads(other)
+        np.testing.assert_allclose(float(l_remat), float(l_other), rtol=1e-6)
+        for a, b in zip(jax.tree.leaves(g_remat), jax.tree.leaves(g_other), strict=True):
+            np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-6)
     assert float(jnp.abs(g_remat[1]).max()) > 0  # the latent's gradient (what DLow's Q network trains on) is not trivially zero
 
 

@@ -86,6 +86,7 @@ class GRUCVAE(nn.Module):
     # the CVAE steps unchanged (`python benchmarks/ab.py --ab decoder_remat`; benchmarks/README.md).
     # The same policy on the encoders' GRU (nn/gru.py) measured slower, so it is not used there.
     decoder_remat: bool = True
+    decoder_unroll: int = 1  # lax.scan's `unroll` of the decoder loop (issue 18 A/B; same numbers)
 
     @property
     def latent_shape(self) -> tuple[int, ...]:
@@ -182,7 +183,8 @@ class GRUCVAE(nn.Module):
 
         if self.decoder_remat:
             step = nn.remat(step, policy=jax.checkpoint_policies.dots_saveable, prevent_cse=False)
-        scan = nn.scan(step, variable_broadcast="params", split_rngs={"params": False}, length=self.horizon, out_axes=1)
+        scan = nn.scan(step, variable_broadcast="params", split_rngs={"params": False}, length=self.horizon, out_axes=1,
+                       unroll=self.decoder_unroll)
         _, ys = scan(self, carry, per_step)
         return ys
 

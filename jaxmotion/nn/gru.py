@@ -63,6 +63,9 @@ class GRU(nn.Module):
 
     features: int
     precision: str = "float32"  # as GRUCell.precision
+    # lax.scan's `unroll` (>= the sequence length: fully unrolled); the same numbers, faster or not. An
+    # int, not True: a module is a jit static argument, and True == 1 would share 1's compiled code.
+    unroll: int = 1
 
     @nn.compact
     def __call__(self, x: Float[ArrayLike, "b t i"], h0: Float[ArrayLike, "b h"] | None = None) -> Float[Array, "b t h"]:
@@ -81,5 +84,5 @@ class GRU(nn.Module):
             h = gru_update(gi_t, matmul(h, p["weight_hh"], mm) + p["bias_hh"], h)
             return h, h
 
-        _, hs = jax.lax.scan(step, h0, gi)
+        _, hs = jax.lax.scan(step, h0, gi, unroll=self.unroll)
         return jnp.swapaxes(hs, 0, 1)
