@@ -86,7 +86,9 @@ class GRUCVAE(nn.Module):
     # the CVAE steps unchanged (`python benchmarks/ab.py --ab decoder_remat`; benchmarks/README.md).
     # The same policy on the encoders' GRU (nn/gru.py) measured slower, so it is not used there.
     decoder_remat: bool = True
-    decoder_unroll: int = 1  # lax.scan's `unroll` of the decoder loop (issue 18 A/B; same numbers)
+    # lax.scan's `unroll` of the decoder loop: same numbers; 4 measured within the run-to-run spread
+    # (0.96x-1.07x, `benchmarks/ab.py --ab decoder_unroll`), so the default stays 1.
+    decoder_unroll: int = 1
 
     @property
     def latent_shape(self) -> tuple[int, ...]:
