@@ -97,9 +97,14 @@ def main(argv: list[str] | None = None) -> int:
     import jax
 
     from jaxmotion import experiment, validity
+    from jaxmotion.errors import CheckpointError
     from jaxmotion.predictor import load
 
-    g = load(args.gsps_run)
+    # Only the prior and the bounds are read: a GSPS run stopped once its generator stage began scores too.
+    try:
+        g = load(args.gsps_run, stages=("prior", "angle_bounds"))
+    except (FileNotFoundError, CheckpointError) as e:
+        raise SystemExit(f"--gsps-run: {e}") from None
     if g.config.method != "gsps":
         raise SystemExit(f"--gsps-run {args.gsps_run}: a {g.config.method!r} run, not a GSPS run")
     v = validity.from_gsps_run(g.config, g.dataset, g.params)

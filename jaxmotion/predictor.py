@@ -151,7 +151,7 @@ def _value(hint, v):
 class MotionPredictor:
     """A trained run: `predict(x, k, key)` draws K futures of frames in the model's layout (`layout`)."""
 
-    def __init__(self, run_dir: str | Path):
+    def __init__(self, run_dir: str | Path, stages: tuple[str, ...] | None = None):
         from jaxmotion.methods import get_method
         from jaxmotion.train.runner import MANIFEST as STAGE_MANIFEST
         from jaxmotion.train.runner import restore_untargeted
@@ -180,10 +180,14 @@ class MotionPredictor:
         self.params = {}
         for d in sorted(self.run_dir.iterdir()):
             m = d / STAGE_MANIFEST
+            if stages is not None and d.name not in stages:
+                continue
             if m.is_file() and json.loads(m.read_text()).get("method") == self.method.name and (d / "ckpt").is_dir():
                 self.params[d.name] = restore_untargeted(d)
         if not self.params:
             raise CheckpointError(f"{self.run_dir}: no trained stage of method {self.method.name!r}")
+        if stages is not None and set(stages) - set(self.params):
+            raise CheckpointError(f"{self.run_dir}: stage(s) {sorted(set(stages) - set(self.params))} not trained")
         self._fns: dict[int, dict] = {}
 
     @property
@@ -246,6 +250,10 @@ class MotionPredictor:
         return out[0] if single else out
 
 
-def load(run_dir: str | Path) -> MotionPredictor:
-    """Returns the trained run at `run_dir` as a `MotionPredictor` (needs only the run directory)."""
-    return MotionPredictor(run_dir)
+def load(run_dir: str | Path, stages: tuple[str, ...] | None = None) -> MotionPredictor:
+    """Returns the trained run at `run_dir` as a `MotionPredictor` (needs only the run directory).
+
+    `stages` restores only those stages (a CheckpointError names any without a checkpoint): e.g. a
+    GSPS run's `("prior", "angle_bounds")` for `validity.from_gsps_run`, before its generator is trained.
+    """
+    return MotionPredictor(run_dir, stages)

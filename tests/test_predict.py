@@ -18,7 +18,7 @@ from jaxmotion.cli import main
 from jaxmotion.config import Config, to_dict
 from jaxmotion.data.folder_split import folder_split
 from jaxmotion.data.synthetic import make_synthetic
-from jaxmotion.errors import DataError
+from jaxmotion.errors import CheckpointError, DataError
 from jaxmotion.formats.bvh import euler_matrices, forward_kinematics, read_bvh
 from jaxmotion.formats.bvh_write import matrix_to_euler, read_end_sites, write_bvh
 from jaxmotion.models.dlow import CVAEConfig, DLowConfig, QConfig
@@ -256,3 +256,23 @@ def test_cmu_clip_round_trips_through_the_writer(tmp_path):
     back = read_bvh(write_bvh(tmp_path / "rt.bvh", fitted, read_end_sites(bvh.path)))
     assert back.names == bvh.names and back.parents == bvh.parents
     assert np.abs(forward_kinematics(back) - pos).max() * 0.056444 < 1e-4
+
+
+def test_load_restores_only_the_stages_asked_for(run, tmp_path):
+    """A run stopped before its last stage wrote a checkpoint still gives its earlier stages (validity_table's GSPS prior)."""
+    cfg, ds, prep, params, moved = run
+    first, last = list(params)[0], list(params)[-1]
+    part = tmp_path / "partial"
+    shutil.copytree(moved, part)
+    shutil.rmtree(part / last / "ckpt")
+    (part / last / "ckpt").mkdir()  # the stage began, no checkpoint yet
+    got = jaxmotion.load(part, stages=(first,))
+    assert list(got.params) == [first]
+    for a, b in zip(jax.tree.leaves(got.params[first]), jax.tree.leaves(params[first]), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    with pytest.raises(CheckpointError, match="no checkpoint"):
+        jaxmotion.load(part)
+    with pytest.raises(CheckpointError, match=f"{last}/ckpt: no checkpoint"):
+        jaxmotion.load(part, stages=(first, last))
+    with pytest.raises(CheckpointError, match=r"\['nope'\] not trained"):
+        jaxmotion.load(part, stages=(first, "nope"))
