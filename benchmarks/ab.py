@@ -3,6 +3,7 @@
     flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py                          # --ab precision, ~6 min on the 2-core CPU
     flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab decoder_remat       # ~4 min
     flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab decoder_unroll      # ~4 min
+    flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab gcn_node_major      # ~6 min
     python benchmarks/ab.py --cases dlow/train_cvae --repeats 3                      # a subset
 
 `--ab precision`: float32 against bfloat16 products (`Config.precision = "bf16"`,
@@ -11,6 +12,8 @@ in float32). `--ab decoder_remat`: the GRU decoders' backward pass stacking ever
 every step against recomputing the gates' elementwise work (`GRUCVAE.decoder_remat`, DLow and MOJO).
 `--ab decoder_unroll`: the same decoders' `lax.scan` loop rolled against unrolled 4 steps at a time
 (`GRUCVAE.decoder_unroll`).
+`--ab gcn_node_major`: DivSamp's and GSPS's graph-convolution stacks laid out batch-major
+`(..., J, F)` against node-major `(J, ..., F)` inside (`nn/gcn.py` `GCLStack.node_major`).
 Each case of `benchmarks/run.py`'s plan named in `--cases` is built twice by the benchmark's own
 builders (`jax_bench.Builders`, the same sizes and functions), once per setting, and the two are
 timed alternately, `--rounds` rounds of `--repeats` calls each, so that drift in the machine's speed
@@ -43,6 +46,7 @@ KNOBS = {
     "precision": (("float32", "bf16"), ("float32", "bf16")),
     "decoder_remat": ((False, True), ("stacked", "remat")),
     "decoder_unroll": ((1, 4), ("rolled", "unroll 4")),
+    "gcn_node_major": ((False, True), ("batch-major", "node-major")),
 }
 DEFAULT_CASES = {"precision": (
     "dlow/train_cvae/b64", "dlow/train_sampler/b16/k50", "dlow/sample/b64/k50",
@@ -54,6 +58,10 @@ DEFAULT_CASES = {"precision": (
     "mojo/train_cvae/b64", "mojo/train_sampler/b16/k50", "mojo/sample/b64/k50",
 )}
 DEFAULT_CASES["decoder_unroll"] = DEFAULT_CASES["decoder_remat"]
+DEFAULT_CASES["gcn_node_major"] = (  # the cases with graph convolutions (DivSamp's and GSPS's)
+    "divsamp/train_cvae/b64", "divsamp/train_sampler/b16/k50", "divsamp/sample/b64/k50",
+    "gsps/train_generator", "gsps/sample/b64/k50",
+)
 
 
 def _matches(name: str, patterns: list[str]) -> bool:

@@ -126,7 +126,7 @@ class Builders:
     def divsamp(self, c: Case):
         s = self.s
         d = divsamp.DivSampConfig()
-        cvae = divsamp.cvae_from_config(d, s.precision)
+        cvae = divsamp.cvae_from_config(d, s.precision).clone(gcn_node_major=s.gcn_node_major)
         cx0 = jnp.zeros((2, s.dim // 3, 3 * d.n_dct))
         v = dict(cvae.init(jax.random.key(0), cx0, cx0, jax.random.key(1), train=False))
         if c.kind == "train_cvae":
@@ -139,7 +139,7 @@ class Builders:
         if c.kind == "sample_prior":
             fn = lambda v, x, key: divsamp.sample_prior(cvae, v, x, key, c.k, t_pred=c.t_pred)
             return _sample_runner(fn, v, x, jax.random.key(2))
-        sampler = divsamp.sampler_from_config(d, s.precision)
+        sampler = divsamp.sampler_from_config(d, s.precision).clone(gcn_node_major=s.gcn_node_major)
         sv = dict(sampler.init(jax.random.key(3), cx0, jax.random.key(4), 2, train=False))
         if c.kind == "sample":
             fn = lambda v, sv, x, key: divsamp.sample_divsamp(cvae, v, sampler, sv, x, key, c.k, t_pred=c.t_pred)
@@ -156,7 +156,7 @@ class Builders:
         s, g = self.s, gsps.GSPSConfig()
         parents, roles, parts, bounds = gsps_skeleton(s.dim)
         gen = gsps.GSPSGenerator(parts=parts, hidden=g.hidden, num_stage=g.num_stage, bn_running_var=g.bn_running_var,
-                                 precision=s.precision)
+                                 precision=s.precision, gcn_node_major=s.gcn_node_major)
         nodes0 = jnp.zeros((2, s.dim // 3, 3 * g.n_pre))
         v = dict(gen.init(jax.random.key(0), nodes0, jnp.zeros((2, len(parts), g.nz)), train=False))
         if c.kind == "train_generator":

@@ -89,3 +89,23 @@ def test_residual_block_adds_its_input():
     zero = jax.tree_util.tree_map(jnp.zeros_like, p)
     out0 = block.apply({"params": zero, "batch_stats": st}, h, train=False)
     np.testing.assert_allclose(np.asarray(out0), np.asarray(h), atol=1e-6)
+
+
+def test_node_major_stack_equals_batch_major_in_outputs_statistics_and_gradients():
+    # GCLStack runs node-major by default; the batch-major layout is the reference definition.
+    h = _h(b=12, seed=4).reshape(3, 4, J, F)  # two leading axes, as DivSamp's (b, K) samples
+    fast, ref = GCLStack(8, num_residual=2), GCLStack(8, num_residual=2, node_major=False)
+    v = ref.init(jax.random.key(0), h, train=False)
+    assert jax.tree.map(jnp.shape, fast.init(jax.random.key(0), h, train=False)) == jax.tree.map(jnp.shape, v)
+    for train in (False, True):
+        out_f, st_f = fast.apply(v, h, train=train, mutable=["batch_stats"])
+        out_r, st_r = ref.apply(v, h, train=train, mutable=["batch_stats"])
+        np.testing.assert_allclose(np.asarray(out_f), np.asarray(out_r), atol=1e-5)
+        jax.tree.map(lambda a, b: np.testing.assert_allclose(np.asarray(a), np.asarray(b), atol=1e-5), st_f, st_r)
+
+    def loss(m, p):
+        out, _ = m.apply({"params": p, "batch_stats": v["batch_stats"]}, h, train=True, mutable=["batch_stats"])
+        return jnp.sum(jnp.sin(out))
+
+    g_f, g_r = jax.grad(lambda p: loss(fast, p))(v["params"]), jax.grad(lambda p: loss(ref, p))(v["params"])
+    jax.tree.map(lambda a, b: np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-4, atol=1e-4), g_f, g_r)

@@ -216,6 +216,37 @@ def test_pseudo_futures_follow_the_release_thresholds():
         assert not fut[i][~mask[i]].any()
 
 
+
+def test_pseudo_futures_draw_uniformly_from_every_qualified_candidate():
+    # A brute-force qualified set on a small synthetic pool: every qualified candidate is drawn
+    # when there are no more than `num`, and each is drawn equally often when there are more.
+    rng = np.random.default_rng(1)
+    t_his, t, j = 3, 8, 2
+    pool = rng.normal(0, 0.1, (300, t, j * 3)).astype(np.float32)
+    w = pool[:2]
+    last = lambda x: x[..., t_his - 1, :].reshape(*x.shape[:-2], j, 3)
+    qual = []
+    for i in range(2):
+        dh = np.linalg.norm(last(pool) - last(w[i]), axis=-1).mean(-1)
+        dp = np.linalg.norm((pool[:, t_his:] - w[i, t_his:]).reshape(-1, t - t_his, j, 3), axis=-1).mean((1, 2))
+        qual.append(np.flatnonzero((dh <= 0.15) & (dp >= 0.2)))
+    assert 20 < len(qual[0]) < 200 and 20 < len(qual[1]) < 200
+    fut, mask = gsps.pseudo_futures(w, pool, rng, t_his=t_his, his_threshold=0.15, pred_threshold=0.2, num=300)
+    for i in range(2):
+        assert mask[i].sum() == len(qual[i])
+        np.testing.assert_array_equal(np.sort(fut[i][mask[i]].sum((1, 2))), np.sort(pool[qual[i], t_his:].sum((1, 2))))
+    counts = np.zeros(len(pool))
+    trials, num = 400, 10
+    for _ in range(trials):
+        fut, mask = gsps.pseudo_futures(w[:1], pool, rng, t_his=t_his, his_threshold=0.15, pred_threshold=0.2, num=num)
+        assert mask.sum() == num
+        drawn = [int(np.flatnonzero((pool[:, t_his:] == f).all((1, 2)))[0]) for f in fut[0]]
+        assert len(set(drawn)) == num and set(drawn) <= set(qual[0])
+        counts[drawn] += 1
+    expected = trials * num / len(qual[0])
+    chi2 = float(((counts[qual[0]] - expected) ** 2 / expected).sum())
+    assert chi2 < len(qual[0]) + 5 * np.sqrt(2 * len(qual[0])), chi2  # mean + 5 sd of chi-square
+
 @pytest.mark.slow
 def test_generator_loss_is_finite_and_differentiable():
     train, _ = _data()

@@ -187,13 +187,14 @@ class DivSampCVAE(nn.Module):
     dense_init: str = "torch"
     bn_running_var: str = "unbiased"
     precision: str = "float32"  # every weight product's: "float32" or "bf16" (nn/precision.py)
+    gcn_node_major: bool = True  # the GCL stacks' inner layout (nn/gcn.py GCLStack.node_major); same outputs
 
     def setup(self):
-        mm = self.precision
-        self.enc = GCLStack(self.hidden, self.num_residual, self.bn_running_var, mm)
+        mm, nm = self.precision, self.gcn_node_major
+        self.enc = GCLStack(self.hidden, self.num_residual, self.bn_running_var, mm, nm)
         self.e_mu = Dense(self.nz, rule=self.dense_init, precision=mm)
         self.e_logvar = Dense(self.nz, rule=self.dense_init, precision=mm)
-        self.dec = GCLStack(self.hidden, self.num_residual, self.bn_running_var, mm)
+        self.dec = GCLStack(self.hidden, self.num_residual, self.bn_running_var, mm, nm)
         self.d_out = GraphConv(3 * self.n_dct, precision=mm)
 
     def encode(self, cx: Float[ArrayLike, "b j c"], cw: Float[ArrayLike, "b j c"], *, train: bool):
@@ -248,6 +249,7 @@ class DivSampSampler(nn.Module):
     dense_init: str = "torch"
     bn_running_var: str = "unbiased"
     precision: str = "float32"  # as DivSampCVAE.precision; the coefficients' product w @ B stays float32
+    gcn_node_major: bool = True  # as DivSampCVAE.gcn_node_major
 
     @nn.compact
     def __call__(self, cx: Float[ArrayLike, "b j c"], key: jax.Array, k: int, *, train: bool, shared_eps: bool = True):
@@ -256,7 +258,7 @@ class DivSampSampler(nn.Module):
         b = cx.shape[0]
         m = self.num_bases
         mm = self.precision
-        h = GCLStack(self.hidden, self.num_residual, self.bn_running_var, mm, name="condition_enc")(cx, train=train).reshape(b, -1)
+        h = GCLStack(self.hidden, self.num_residual, self.bn_running_var, mm, self.gcn_node_major, name="condition_enc")(cx, train=train).reshape(b, -1)
         base = Dense(m * self.base_dim, rule=self.dense_init, precision=mm, name="bases")(h)
         base = BatchNorm(not train, 0.9, 1e-5, self.bn_running_var, name="bases_bn")(base)
         if self.base_tanh:

@@ -478,12 +478,13 @@ class PartGCN(nn.Module):
     num_stage: int = 4
     bn_running_var: str = "unbiased"  # PyTorch's (the release); "biased" is flax's (nn/batchnorm.py)
     precision: str = "float32"  # the graph convolutions' products: "float32" or "bf16" (nn/precision.py)
+    gcn_node_major: bool = True  # the GCL stack's inner layout (nn/gcn.py GCLStack.node_major); same outputs
 
     @nn.compact
     def __call__(self, h: Float[Array, "b j f"], z: Float[Array, "b z"], *, train: bool) -> Float[Array, "b j f"]:
         zj = jnp.broadcast_to(z[:, None, :], h.shape[:2] + z.shape[-1:])
         x = jnp.concatenate([h, zj], axis=-1)
-        y = GCLStack(self.hidden, self.num_stage, self.bn_running_var, self.precision, name="gcn")(x, train=train)
+        y = GCLStack(self.hidden, self.num_stage, self.bn_running_var, self.precision, self.gcn_node_major, name="gcn")(x, train=train)
         y = GraphConv(x.shape[-1], precision=self.precision, name="out")(y) + x
         return y[..., : h.shape[-1]]
 
@@ -496,12 +497,13 @@ class GSPSGenerator(nn.Module):
     num_stage: int = 4
     bn_running_var: str = "unbiased"
     precision: str = "float32"  # as PartGCN.precision (the flow prior keeps float32 always)
+    gcn_node_major: bool = True  # as PartGCN.gcn_node_major
 
     @nn.compact
     def __call__(self, nodes: Float[Array, "b j f"], z: Float[Array, "b p z"], *, train: bool) -> Float[Array, "b j f"]:
         y = nodes
         for i, part in enumerate(self.parts):
-            out = PartGCN(self.hidden, self.num_stage, self.bn_running_var, self.precision, name=f"part_{i}")(y, z[:, i], train=train)
+            out = PartGCN(self.hidden, self.num_stage, self.bn_running_var, self.precision, self.gcn_node_major, name=f"part_{i}")(y, z[:, i], train=train)
             idx = np.asarray(part)
             y = y.at[:, idx].set(out[:, idx])
         return y
@@ -633,22 +635,29 @@ def pseudo_futures(
     observed pose is within `his_threshold` of the window's (mean per-joint distance) and its
     future is at least `pred_threshold` away from the window's (mean per-joint distance over the
     future); up to `num` are drawn at random. Only the futures enter the loss, so replacing the
-    candidates' history by the window's is implicit. Vectorised over the batch.
+    candidates' history by the window's is implicit. The history test is vectorised over the
+    batch; the future test runs per window on random chunks of the history-qualified candidates.
     """
     b, t, d = windows.shape
-    j = d // 3
+    j, t_pred = d // 3, t - t_his
     last = windows[:, t_his - 1].reshape(b, 1, j, 3)
     dist_his = np.linalg.norm(last - pool[None, :, t_his - 1].reshape(1, -1, j, 3), axis=-1).mean(-1)  # (b, n)
-    out = np.zeros((b, num, t - t_his, d), np.float32)
+    out = np.zeros((b, num, t_pred, d), np.float32)
     mask = np.zeros((b, num), bool)
+    # The release draws `num` of the qualified candidates uniformly without replacement. Taking the
+    # first `num` that pass the future test in a random order of the history-qualified ones is the
+    # same distribution, and tests only as many futures as it needs: with thousands of
+    # history-qualified candidates per window, testing all of them took ~1 s per batch of 16.
+    chunk = max(4 * num, 64)
     for i in range(b):
-        idx = np.flatnonzero(dist_his[i] <= his_threshold)
-        if len(idx):
-            fut = pool[idx, t_his:]
-            dp = np.linalg.norm((fut - windows[i, None, t_his:]).reshape(len(idx), t - t_his, j, 3), axis=-1).mean((1, 2))
-            idx = idx[dp >= pred_threshold]
-        if len(idx) > num:
-            idx = rng.choice(idx, num, replace=False)
-        out[i, : len(idx)] = pool[idx, t_his:]
-        mask[i, : len(idx)] = True
+        cand = rng.permutation(np.flatnonzero(dist_his[i] <= his_threshold))
+        chosen = []
+        for s in range(0, len(cand), chunk):
+            c = cand[s : s + chunk]
+            dp = np.linalg.norm((pool[c, t_his:] - windows[i, None, t_his:]).reshape(len(c), t_pred, j, 3), axis=-1)
+            chosen.extend(c[dp.mean((1, 2)) >= pred_threshold][: num - len(chosen)])
+            if len(chosen) == num:
+                break
+        out[i, : len(chosen)] = pool[chosen, t_his:]
+        mask[i, : len(chosen)] = True
     return out, mask

@@ -28,12 +28,18 @@ class BatchNorm(nn.Module):
     momentum: float = 0.9
     epsilon: float = 1e-5
     running_var: str = "unbiased"
+    # Node-major input `(J, ..., F)` (nn/gcn.py's GCL stacks): the features are the J * F pairs
+    # (j, f), numbered j * F + f as in the flattened `(..., J * F)` layout, so the parameters and
+    # statistics are the same arrays in either layout; statistics over the middle axes.
+    node_major: bool = False
 
     @nn.compact
     def __call__(self, x: Float[ArrayLike, "... f"]) -> Float[Array, "... f"]:
         if self.running_var not in RUNNING_VARS:
             raise ValueError(f"BatchNorm.running_var must be one of {RUNNING_VARS}, got {self.running_var!r}")
         x = jnp.asarray(x)
+        if self.node_major:
+            return self._node_major(x)
         f = x.shape[-1]
         ra_mean = self.variable("batch_stats", "mean", lambda: jnp.zeros((f,), jnp.float32))
         ra_var = self.variable("batch_stats", "var", lambda: jnp.ones((f,), jnp.float32))
@@ -51,4 +57,25 @@ class BatchNorm(nn.Module):
                 m = self.momentum
                 ra_mean.value = m * ra_mean.value + (1.0 - m) * mean
                 ra_var.value = m * ra_var.value + (1.0 - m) * keep
+        return (x - mean) * (scale / jnp.sqrt(var + self.epsilon)) + bias
+
+    def _node_major(self, x: Float[Array, "j ... f"]) -> Float[Array, "j ... f"]:
+        j, f = x.shape[0], x.shape[-1]
+        shape = (j,) + (1,) * (x.ndim - 2) + (f,)  # a (J * F,) vector laid over (J, ..., F)
+        ra_mean = self.variable("batch_stats", "mean", lambda: jnp.zeros((j * f,), jnp.float32))
+        ra_var = self.variable("batch_stats", "var", lambda: jnp.ones((j * f,), jnp.float32))
+        scale = self.param("scale", nn.initializers.ones_init(), (j * f,), jnp.float32).reshape(shape)
+        bias = self.param("bias", nn.initializers.zeros_init(), (j * f,), jnp.float32).reshape(shape)
+        if self.use_running_average:
+            mean, var = ra_mean.value.reshape(shape), ra_var.value.reshape(shape)
+        else:
+            axes = tuple(range(1, x.ndim - 1))
+            mean = jnp.mean(x, axis=axes, keepdims=True)
+            var = jnp.mean(jnp.square(x - mean), axis=axes, keepdims=True)
+            if not self.is_initializing():
+                n = math.prod(x.shape[1:-1])
+                keep = var * (n / (n - 1)) if self.running_var == "unbiased" and n > 1 else var
+                m = self.momentum
+                ra_mean.value = m * ra_mean.value + (1.0 - m) * mean.reshape(-1)
+                ra_var.value = m * ra_var.value + (1.0 - m) * keep.reshape(-1)
         return (x - mean) * (scale / jnp.sqrt(var + self.epsilon)) + bias

@@ -30,19 +30,28 @@ def _uniform(bound: float):
 
 
 class GraphConv(nn.Module):
-    """Returns `A H W + b` for node features H `(..., J, F_in)`: a graph convolution with learnable A (J x J)."""
+    """Returns `A H W + b` for node features H `(..., J, F_in)`: a graph convolution with learnable A (J x J).
+
+    With `node_major=True` the input and output are laid out `(J, ..., F)`: the adjacency product
+    is then one `(J, J) @ (J, rest)` matrix product with no transposes (see `GCLStack`).
+    """
 
     features: int
     use_bias: bool = True
     precision: str = "float32"  # the products': "float32" or "bf16" (nn/precision.py)
+    node_major: bool = False
 
     @nn.compact
     def __call__(self, h: Float[ArrayLike, "... j f"]) -> Float[Array, "... j o"]:
-        j, f_in = h.shape[-2:]
+        j, f_in = (h.shape[0], h.shape[-1]) if self.node_major else h.shape[-2:]
         init = _uniform(1.0 / float(self.features) ** 0.5)
         w = self.param("kernel", init, (f_in, self.features))
         a = self.param("adjacency", init, (j, j))
-        out = graph_matmul(a, matmul(h, w, self.precision), self.precision)
+        g = matmul(h, w, self.precision)
+        if self.node_major:
+            out = matmul(a, g.reshape(j, -1), self.precision).reshape(g.shape)
+        else:
+            out = graph_matmul(a, g, self.precision)
         if self.use_bias:
             out = out + self.param("bias", init, (self.features,))
         return out
@@ -58,14 +67,19 @@ class GCLBlock(nn.Module):
     features: int
     running_var: str = "unbiased"
     precision: str = "float32"  # as GraphConv.precision
+    node_major: bool = False  # as GraphConv.node_major
 
     @nn.compact
     def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool) -> Float[Array, "... j o"]:
-        x = GraphConv(self.features, precision=self.precision, name="gc")(h)
+        x = GraphConv(self.features, precision=self.precision, node_major=self.node_major, name="gc")(h)
+        bn = BatchNorm(
+            use_running_average=not train, momentum=0.9, epsilon=1e-5, running_var=self.running_var,
+            node_major=self.node_major, name="bn",
+        )
+        if self.node_major:
+            return jnp.tanh(bn(x))
         shape = x.shape
-        x = x.reshape(shape[:-2] + (shape[-2] * shape[-1],))
-        x = BatchNorm(use_running_average=not train, momentum=0.9, epsilon=1e-5, running_var=self.running_var, name="bn")(x)
-        return jnp.tanh(x.reshape(shape))
+        return jnp.tanh(bn(x.reshape(shape[:-2] + (shape[-2] * shape[-1],))).reshape(shape))
 
 
 class ResidualGCLBlock(nn.Module):
@@ -74,11 +88,12 @@ class ResidualGCLBlock(nn.Module):
     features: int
     running_var: str = "unbiased"
     precision: str = "float32"  # as GraphConv.precision
+    node_major: bool = False  # as GraphConv.node_major
 
     @nn.compact
     def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool) -> Float[Array, "... j f"]:
-        x = GCLBlock(h.shape[-1], self.running_var, self.precision, name="gcl_0")(h, train=train)
-        x = GCLBlock(self.features, self.running_var, self.precision, name="gcl_1")(x, train=train)
+        x = GCLBlock(h.shape[-1], self.running_var, self.precision, self.node_major, name="gcl_0")(h, train=train)
+        x = GCLBlock(self.features, self.running_var, self.precision, self.node_major, name="gcl_1")(x, train=train)
         return x + h
 
 
@@ -88,16 +103,27 @@ class GCLStack(nn.Module):
     One GCL-BN-Tanh layer maps the input to `features`, then `num_residual` residual pairs follow:
     DivSamp's CVAE encoder and decoder use 4 pairs (9 layers, supp. Table 4), its sampler N_beta 2
     (5 layers, supp. Table 3).
+
+    Input and output are `(..., J, F)`. Inside, the stack runs node-major (`node_major=True`, the
+    default): one transpose to `(J, ..., F)` on the way in and one on the way out, so every
+    adjacency product is a plain `(J, J) @ (J, rest)` product. The batch-major layout computes
+    `einsum("ij,...jo->...io")`, which XLA's CPU backend runs with a transpose of its operand and
+    result around every layer (measured in benchmarks/README.md, "Node-major graph convolutions").
+    Both layouts have the same parameters and statistics, so checkpoints load in either.
     """
 
     features: int
     num_residual: int
     running_var: str = "unbiased"
     precision: str = "float32"  # as GraphConv.precision
+    node_major: bool = True
 
     @nn.compact
     def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool) -> Float[Array, "... j o"]:
-        h = GCLBlock(self.features, self.running_var, self.precision, name="gcl_in")(h, train=train)
+        nm = self.node_major
+        if nm:
+            h = jnp.moveaxis(jnp.asarray(h), -2, 0)
+        h = GCLBlock(self.features, self.running_var, self.precision, nm, name="gcl_in")(h, train=train)
         for i in range(self.num_residual):
-            h = ResidualGCLBlock(self.features, self.running_var, self.precision, name=f"res_{i}")(h, train=train)
-        return h
+            h = ResidualGCLBlock(self.features, self.running_var, self.precision, nm, name=f"res_{i}")(h, train=train)
+        return jnp.moveaxis(h, 0, -2) if nm else h
