@@ -1,4 +1,4 @@
-"""BatchNorm over the last axis with PyTorch's running statistics (`nn.BatchNorm1d`).
+"""BatchNorm with PyTorch's running statistics (`nn.BatchNorm1d`), features last or node-major `(J, ..., F)`.
 
 Both frameworks normalise a training batch by its biased variance. They differ in what they keep
 for evaluation: flax's `nn.BatchNorm` averages the biased batch variance into `var`, PyTorch the
@@ -38,42 +38,23 @@ class BatchNorm(nn.Module):
         if self.running_var not in RUNNING_VARS:
             raise ValueError(f"BatchNorm.running_var must be one of {RUNNING_VARS}, got {self.running_var!r}")
         x = jnp.asarray(x)
-        if self.node_major:
-            return self._node_major(x)
-        f = x.shape[-1]
+        if self.node_major:  # features (J, F) at both ends, statistics over the middle axes
+            view = (x.shape[0],) + (1,) * (x.ndim - 2) + (x.shape[-1],)
+            axes = tuple(range(1, x.ndim - 1))
+        else:  # features last, statistics over every leading axis
+            view, axes = (x.shape[-1],), tuple(range(x.ndim - 1))
+        f = math.prod(view)  # the parameters and statistics are (f,) vectors, laid over x as `view`
         ra_mean = self.variable("batch_stats", "mean", lambda: jnp.zeros((f,), jnp.float32))
         ra_var = self.variable("batch_stats", "var", lambda: jnp.ones((f,), jnp.float32))
-        scale = self.param("scale", nn.initializers.ones_init(), (f,), jnp.float32)
-        bias = self.param("bias", nn.initializers.zeros_init(), (f,), jnp.float32)
+        scale = self.param("scale", nn.initializers.ones_init(), (f,), jnp.float32).reshape(view)
+        bias = self.param("bias", nn.initializers.zeros_init(), (f,), jnp.float32).reshape(view)
         if self.use_running_average:
-            mean, var = ra_mean.value, ra_var.value
+            mean, var = ra_mean.value.reshape(view), ra_var.value.reshape(view)
         else:
-            axes = tuple(range(x.ndim - 1))
-            mean = jnp.mean(x, axis=axes)
-            var = jnp.mean(jnp.square(x - mean), axis=axes)
-            if not self.is_initializing():
-                n = math.prod(x.shape[:-1])
-                keep = var * (n / (n - 1)) if self.running_var == "unbiased" and n > 1 else var
-                m = self.momentum
-                ra_mean.value = m * ra_mean.value + (1.0 - m) * mean
-                ra_var.value = m * ra_var.value + (1.0 - m) * keep
-        return (x - mean) * (scale / jnp.sqrt(var + self.epsilon)) + bias
-
-    def _node_major(self, x: Float[Array, "j ... f"]) -> Float[Array, "j ... f"]:
-        j, f = x.shape[0], x.shape[-1]
-        shape = (j,) + (1,) * (x.ndim - 2) + (f,)  # a (J * F,) vector laid over (J, ..., F)
-        ra_mean = self.variable("batch_stats", "mean", lambda: jnp.zeros((j * f,), jnp.float32))
-        ra_var = self.variable("batch_stats", "var", lambda: jnp.ones((j * f,), jnp.float32))
-        scale = self.param("scale", nn.initializers.ones_init(), (j * f,), jnp.float32).reshape(shape)
-        bias = self.param("bias", nn.initializers.zeros_init(), (j * f,), jnp.float32).reshape(shape)
-        if self.use_running_average:
-            mean, var = ra_mean.value.reshape(shape), ra_var.value.reshape(shape)
-        else:
-            axes = tuple(range(1, x.ndim - 1))
             mean = jnp.mean(x, axis=axes, keepdims=True)
             var = jnp.mean(jnp.square(x - mean), axis=axes, keepdims=True)
             if not self.is_initializing():
-                n = math.prod(x.shape[1:-1])
+                n = math.prod(x.shape[a] for a in axes)
                 keep = var * (n / (n - 1)) if self.running_var == "unbiased" and n > 1 else var
                 m = self.momentum
                 ra_mean.value = m * ra_mean.value + (1.0 - m) * mean.reshape(-1)
