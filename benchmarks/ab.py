@@ -4,6 +4,7 @@
     flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab decoder_remat       # ~4 min
     flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab decoder_unroll      # ~4 min
     flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab gcn_node_major      # ~6 min
+    flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab gsps_best_of        # ~3 min
     python benchmarks/ab.py --cases dlow/train_cvae --repeats 3                      # a subset
 
 `--ab precision`: float32 against bfloat16 products (`Config.precision = "bf16"`,
@@ -14,6 +15,8 @@ every step against recomputing the gates' elementwise work (`GRUCVAE.decoder_rem
 (`GRUCVAE.decoder_unroll`).
 `--ab gcn_node_major`: DivSamp's and GSPS's graph-convolution stacks laid out batch-major
 `(..., J, F)` against node-major `(J, ..., F)` inside (`nn/gcn.py` `GCLStack.node_major`).
+`--ab gsps_best_of`: GSPS's best-of-K squared errors (against the truth and every pseudo future) by
+differencing every pair against `|a|^2 + |m|^2 - 2 a.m` (`models/gsps.py` `generator_loss(best_of=...)`).
 Each case of `benchmarks/run.py`'s plan named in `--cases` is built twice by the benchmark's own
 builders (`jax_bench.Builders`, the same sizes and functions), once per setting, and the two are
 timed alternately, `--rounds` rounds of `--repeats` calls each, so that drift in the machine's speed
@@ -47,6 +50,7 @@ KNOBS = {
     "decoder_remat": ((False, True), ("stacked", "remat")),
     "decoder_unroll": ((1, 4), ("rolled", "unroll 4")),
     "gcn_node_major": ((False, True), ("batch-major", "node-major")),
+    "gsps_best_of": (("pairwise", "gram"), ("pairwise", "gram")),
 }
 DEFAULT_CASES = {"precision": (
     "dlow/train_cvae/b64", "dlow/train_sampler/b16/k50", "dlow/sample/b64/k50",
@@ -62,6 +66,7 @@ DEFAULT_CASES["gcn_node_major"] = (  # the cases with graph convolutions (DivSam
     "divsamp/train_cvae/b64", "divsamp/train_sampler/b16/k50", "divsamp/sample/b64/k50",
     "gsps/train_generator", "gsps/sample/b64/k50",
 )
+DEFAULT_CASES["gsps_best_of"] = ("gsps/train_generator",)
 
 
 def _matches(name: str, patterns: list[str]) -> bool:

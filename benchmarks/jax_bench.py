@@ -167,7 +167,8 @@ class Builders:
                 "lambda_his", "lambda_limb", "lambda_div_first", "lambda_div_rest", "alpha", "beta", "lambda_recon",
                 "lambda_recon_mm", "lambda_prior", "prior_stride", "lambda_angle")}
             loss = functools.partial(gsps.generator_loss, gen, prior=prior, t_his=s.t_his, parents=parents, parts=parts,
-                                     roles=roles, n_pre=g.n_pre, nz=g.nz, nk1=nk1, nk2=nk2, **weights)
+                                     roles=roles, n_pre=g.n_pre, nz=g.nz, nk1=nk1, nk2=nk2, best_of=s.gsps_best_of,
+                                     **weights)
             tx = bn_optimizer(optax.chain(optax.clip_by_global_norm(g.grad_clip), optax.adam(g.lr)))
             step = make_bn_train_step(
                 lambda v, f, b, k: loss(v, prior_params=f["prior"], angle_bounds=f["bounds"], batch=b, key=k), tx)

@@ -127,6 +127,19 @@ def _gram(a: Float[Array, "... p f"], b: Float[Array, "... q f"]) -> Float[Array
     return jnp.einsum("...pf,...qf->...pq", a, b, precision=lax.Precision.HIGHEST)
 
 
+def pairwise_sq_distances(
+    a: Float[Array, "... p f"], b: Float[Array, "... q f"], *, a_sq: Float[Array, "... p"] | None = None,
+) -> Float[Array, "... p q"]:
+    """Returns `||a_i - b_j||^2` for every pair, as `|a|^2 + |b|^2 - 2 a.b` (one product), clipped at 0.
+
+    Rounding grows with the norms, not the distances: take both sides relative to a common point near
+    them first (a true future, one of the samples). `a_sq`: `sum(a * a, -1)` where the caller has it.
+    """
+    a_sq = jnp.sum(a * a, axis=-1) if a_sq is None else a_sq
+    b_sq = jnp.sum(b * b, axis=-1)
+    return jnp.maximum(a_sq[..., :, None] + b_sq[..., None, :] - 2.0 * _gram(a, b), 0.0)
+
+
 # Samples per block of APD's product: beyond one block only the blocks on and above the diagonal
 # are computed, the others being their transposes (K = 1000: 36 products of 125 x 125, not 64).
 APD_BLOCK = 128

@@ -247,6 +247,35 @@ def test_pseudo_futures_draw_uniformly_from_every_qualified_candidate():
     chi2 = float(((counts[qual[0]] - expected) ** 2 / expected).sum())
     assert chi2 < len(qual[0]) + 5 * np.sqrt(2 * len(qual[0])), chi2  # mean + 5 sd of chi-square
 
+def test_best_of_errors_gram_matches_the_pairwise_differences():
+    # Bandai's scale: futures relative to the hips (~0.5 m), samples ~0.05-0.5 m from the truth, one
+    # sample equal to a pseudo future (distance exactly 0 in the pairwise form).
+    rng = np.random.default_rng(0)
+    b, k, m, t, d = 3, 12, 5, 60, 60
+    y = rng.normal(0, 0.5, (b, t, d)).astype(np.float32)
+    y_g = (y[:, None] + rng.normal(0, 1, (b, k, 1, 1)) * rng.normal(0, 0.05, (b, k, t, d))).astype(np.float32)
+    mm = (y[:, None] + rng.normal(0, 0.1, (b, m, t, d))).astype(np.float32)
+    mm[1, 2] = y_g[1, 7]
+    w = rng.normal(size=(b, k, m)).astype(np.float32)
+
+    def f(how):
+        def scalar(y_g):
+            err, err_mm = gsps._best_of_errors(y_g, jnp.asarray(y), jnp.asarray(mm), how)
+            return jnp.sum(jnp.min(err, 1)) + jnp.sum(jnp.min(err_mm, 1)) + jnp.sum(w * err_mm), (err, err_mm)
+        return jax.jit(jax.value_and_grad(scalar, has_aux=True))(jnp.asarray(y_g))
+
+    (v_p, (e_p, em_p)), g_p = f("pairwise")
+    (v_g, (e_g, em_g)), g_g = f("gram")
+    np.testing.assert_allclose(e_g, e_p, rtol=1e-6)
+    np.testing.assert_allclose(em_g, em_p, rtol=1e-5, atol=2e-4)  # errors ~ 0.5-36, atol: float32 rounding of |a|^2 ~ 900
+    assert float(em_g[1, 7, 2]) < 2e-4
+    np.testing.assert_allclose(v_g, v_p, rtol=1e-5)
+    np.testing.assert_allclose(g_g, g_p, rtol=1e-4, atol=1e-4 * float(jnp.max(jnp.abs(g_p))))
+    assert np.array_equal(np.argmin(em_g, 1), np.argmin(em_p, 1))
+    with pytest.raises(ValueError, match="best_of"):
+        gsps._best_of_errors(jnp.asarray(y_g), jnp.asarray(y), jnp.asarray(mm), "cdist")
+
+
 @pytest.mark.slow
 def test_generator_loss_is_finite_and_differentiable():
     train, _ = _data()

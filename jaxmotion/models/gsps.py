@@ -50,6 +50,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
+from jaxmotion.metrics import pairwise_sq_distances
 from jaxmotion.models.divsamp import bone_lengths, condition_nodes, from_nodes
 from jaxmotion.nn.gcn import GCLStack, GraphConv
 
@@ -558,16 +559,38 @@ def _exp_l1_diversity(y: Float[Array, "... k n"], scale: float) -> Float[Array, 
     return jnp.mean(jnp.exp(-d / scale))
 
 
+def _best_of_errors(
+    y_g: Float[Array, "b k t d"], y: Float[Array, "b t d"], mm: Float[Array, "b m t d"], how: str,
+) -> tuple[Float[Array, "b k"], Float[Array, "b k m"]]:
+    """Returns the squared errors of every sample against the true future and against every pseudo future."""
+    if how == "pairwise":
+        err = jnp.sum((y_g - y[:, None]) ** 2, axis=(-2, -1))
+        return err, jnp.sum((y_g[:, :, None] - mm[:, None]) ** 2, axis=(-2, -1))
+    if how != "gram":
+        raise ValueError(f"generator_loss: best_of must be 'gram' or 'pairwise', got {how!r}")
+    b, k = y_g.shape[:2]
+    a = (y_g - y[:, None]).reshape(b, k, -1)
+    m = (mm - y[:, None]).reshape(b, mm.shape[1], -1)
+    err = jnp.sum(a * a, axis=-1)
+    return err, pairwise_sq_distances(a, m, a_sq=err)
+
+
 def generator_loss(
     gen: GSPSGenerator, variables, prior: PosePrior, prior_params, batch: dict, key: jax.Array, *,
     t_his: int, parents: tuple[int, ...], parts: tuple[tuple[int, ...], ...], roles: dict[str, int],
     angle_bounds: Float[Array, "a 2"], n_pre: int, nz: int, nk1: int, nk2: int,
     lambda_his: float, lambda_limb: float, lambda_div_first: float, lambda_div_rest: float, alpha: float, beta: float,
     lambda_recon: float, lambda_recon_mm: float, lambda_prior: float, prior_stride: int, lambda_angle: float,
+    best_of: str = "gram",
 ):
     """Returns `(loss, (metrics, batch_stats))`: GSPS's generator objective (release `train.py: loss_function`).
 
     `batch`: `window (b, T, D)`, `mm (b, M, t_pred, D)` pseudo ground-truth futures and `mm_mask (b, M)`.
+    `best_of`: how the (b, K, M) squared errors of the best-of-K terms are formed: "gram" (default) as
+    `|a|^2 + |m|^2 - 2 a.m`, one batched product, both sides taken relative to the true future first
+    (norms of the order of the distances, little cancellation); "pairwise" as the release does, by
+    differencing every (sample, pseudo future) pair, a (b, K, M, t_pred, D) array. The same values to
+    float32 rounding (`tests/test_gsps.py`); benchmarks/README.md, "GSPS's best-of-K errors", has the A/B.
     """
     w, mm, mm_mask = batch["window"], batch["mm"], batch["mm_mask"]
     b, t_total, _ = w.shape
@@ -590,9 +613,8 @@ def generator_loss(
     div_first = _exp_l1_diversity(first, alpha)
     div_rest = _exp_l1_diversity(rest, beta)
     # Best of nk1 * nk2 against the truth and against every pseudo ground-truth future.
-    err = jnp.sum((y_g - y[:, None]) ** 2, axis=(-2, -1))  # (b, K)
+    err, err_mm = _best_of_errors(y_g, y, mm, best_of)  # (b, K), (b, K, M)
     recon = jnp.mean(jnp.min(err, axis=1))
-    err_mm = jnp.sum((y_g[:, :, None] - mm[:, None]) ** 2, axis=(-2, -1))  # (b, K, M)
     best_mm = jnp.min(err_mm, axis=1)
     recon_mm = jnp.sum(best_mm * mm_mask) / jnp.maximum(jnp.sum(mm_mask), 1.0)
     # Pose prior on every `prior_stride`-th future frame (random phase), limb directions.
