@@ -247,6 +247,7 @@ def test_pseudo_futures_draw_uniformly_from_every_qualified_candidate():
     chi2 = float(((counts[qual[0]] - expected) ** 2 / expected).sum())
     assert chi2 < len(qual[0]) + 5 * np.sqrt(2 * len(qual[0])), chi2  # mean + 5 sd of chi-square
 
+
 def test_best_of_errors_gram_matches_the_pairwise_differences():
     # Bandai's scale: futures relative to the hips (~0.5 m), samples ~0.05-0.5 m from the truth, one
     # sample equal to a pseudo future (distance exactly 0 in the pairwise form).
