@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 import datetime
 import json
+import os
 import shutil
 import sys
 import tempfile
@@ -170,15 +171,26 @@ def main(argv=None):
                     help="also run (a) in float32 with sampling seed S: the metrics' change from the noise draws alone")
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "eval_speed.json",
                     help="results file; (b)'s metric values are compared with the previous one's")
+    ap.add_argument("--hugepages", choices=("on", "off"), default="on",
+                    help="restart with glibc's huge-page tunable as the jaxmotion command does (jaxmotion/hugepages.py); "
+                         "off: glibc's default pages")
     args = ap.parse_args(argv)
+    from jaxmotion import hugepages
+
+    if args.hugepages == "on":
+        hugepages.exec_with_hugepages()
+    elif hugepages.TUNABLE in os.environ.get("GLIBC_TUNABLES", "").split(":"):
+        raise SystemExit("eval_speed.py --hugepages off: GLIBC_TUNABLES holds the huge-page tunable; unset it first")
     import jax
 
     from jaxmotion import experiment
     from jaxmotion.config import load_config
 
-    m = {**machine(), "bf16": has_bf16(cpu_flags())}
+    m = {**machine(), "bf16": has_bf16(cpu_flags()),
+         "glibc_tunables": os.environ.get("GLIBC_TUNABLES", ""), "thp_mode": hugepages.thp_mode()}
     print(f"CPU: {m['cpu']}, {m['logical_cpus']} logical CPUs, {m['memory_gib']} GiB, bfloat16 instructions: "
-          f"{'yes' if m['bf16'] else 'no'}; jax {jax.__version__}, devices {[str(d) for d in jax.devices()]}")
+          f"{'yes' if m['bf16'] else 'no'}; jax {jax.__version__}, devices {[str(d) for d in jax.devices()]}; "
+          f"GLIBC_TUNABLES={m['glibc_tunables'] or '(unset)'}, transparent huge pages: {m['thp_mode']}")
     t0 = time.perf_counter()
     dlow_cfg = args.dlow_config
     part_a, part_b = args.only in (None, "eval"), args.only in (None, "k1000")

@@ -15,6 +15,8 @@ import statistics
 import time
 from typing import Callable
 
+import numpy as np
+
 MODELS = ("dlow", "mojo", "divsamp", "gsps", "motionmap")
 
 
@@ -34,6 +36,7 @@ class Settings:
     gsps_nk: tuple[int, int] = (10, 10)  # GSPS training samples per window, nk1 x nk2 (the release's)
     gsps_mm: int = 10  # pseudo ground-truth futures per window in GSPS's training step (the release's)
     hm_size: int = 128  # MotionMap's heatmap side (the release's 128 x 128)
+    hm_members: int = 64  # MotionMap's heatmap stage: multimodal futures drawn into each target map (MotionMapConfig.max_members)
     peak_sizes: tuple[int, ...] = (1024, 2048, 4096)  # n x n products that measure the machine's peak (peak.py)
     warmup: int = 2
     repeats: int = 7
@@ -49,7 +52,7 @@ class Settings:
     def quick(cls, **kw) -> "Settings":
         """Returns tiny settings for a smoke test (seconds, not minutes; numbers not meaningful)."""
         base = dict(train_batch=8, sampler_batch=2, k=5, sample_batches=(1, 4), k_sweep=(1, 20), t_pred_sweep=(10, 30),
-                    t_pred=30, warmup=1, repeats=2, gsps_nk=(2, 2), gsps_mm=3, hm_size=16, peak_sizes=(256, 512))
+                    t_pred=30, warmup=1, repeats=2, gsps_nk=(2, 2), gsps_mm=3, hm_size=16, hm_members=4, peak_sizes=(256, 512))
         base.update(kw)
         return cls(**base)
 
@@ -82,8 +85,9 @@ def plan(s: Settings) -> list[Case]:
     with K and t_pred; DLow's and MOJO's Q networks are trained for one K). GSPS has one network to
     train after its (cheap, single-frame) pose prior: its generator step draws nk1 x nk2 samples per
     window (`k` = nk1 * nk2) at the second stages' batch; MotionMap's autoencoder step runs at the
-    first stages' batch, and its heatmap network's forward pass (the map of every window, sigmoid
-    included) at the sampling batches.
+    first stages' batch, as does its heatmap stage's step (`k` = the multimodal futures drawn into each
+    target map; the targets are built inside the step from a pool of map cells, as in training), and
+    its heatmap network's forward pass (the map of every window, sigmoid included) at the sampling batches.
     """
     cases = []
     for m in s.models:
@@ -93,6 +97,7 @@ def plan(s: Settings) -> list[Case]:
             continue
         if m == "motionmap":
             cases.append(Case(m, "train_ae", s.train_batch, t_pred=s.t_pred))
+            cases.append(Case(m, "train_heatmap", s.train_batch, k=s.hm_members))
             cases += [Case(m, "heatmap", b) for b in s.sample_batches]
             continue
         cases.append(Case(m, "train_cvae", s.train_batch, t_pred=s.t_pred))
@@ -202,6 +207,18 @@ def parents_for(dim: int) -> tuple[int, ...]:
     """Returns a kinematic tree of `dim / 3 + 1` joints (root first): five chains from the root, for bone-length losses."""
     j = dim // 3 + 1
     return tuple(-1 if i == 0 else (0 if i % 4 == 1 else i - 1) for i in range(j))
+
+
+def heatmap_batch(s: Settings, c: Case) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Returns `(cells, batch)` for MotionMap's heatmap step: map cells of a 4,096-window pool, and `c.k` members per window.
+
+    Both frameworks build the step's target maps from these (cells in the map, members as pool
+    indices, every member valid), so they time the same work on the same numbers.
+    """
+    rng = np.random.default_rng(s.seed + 5)
+    cells = rng.integers(0, s.hm_size, (4096, 2)).astype(np.int32)
+    members = rng.integers(0, len(cells), (c.batch, c.k)).astype(np.int32)
+    return cells, {"members": members, "mask": np.ones((c.batch, c.k), bool)}
 
 
 def gsps_skeleton(dim: int) -> tuple[tuple[int, ...], dict[str, int], tuple[tuple[int, ...], ...], list[list[float]]]:

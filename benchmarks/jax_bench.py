@@ -23,7 +23,7 @@ import numpy as np
 import optax
 
 from benchmarks import flops
-from benchmarks.harness import Case, PeakRSS, Settings, gsps_skeleton, measure, parents_for, plan
+from benchmarks.harness import Case, PeakRSS, Settings, gsps_skeleton, heatmap_batch, measure, parents_for, plan
 from jaxmotion.models import divsamp, dlow, gsps, mojo
 from jaxmotion.models import motionmap as mm
 from jaxmotion.train.loop import bn_optimizer, make_bn_train_step
@@ -198,6 +198,13 @@ class Builders:
         hm = mm.heatmap_model(m)
         x = self.data(c.batch, s.t_his)
         p = hm.init(jax.random.key(1), x[:1])
+        if c.kind == "train_heatmap":
+            cells, batch = heatmap_batch(s, c)
+            tx = optax.amsgrad(m.lr)
+            step = make_train_step(lambda q, _f, b, k: mm.heatmap_loss(
+                hm, q, jnp.asarray(cells), b, size=s.hm_size, sigma=m.hm_sigma, pos_weight=m.pos_weight), tx)
+            batch = {"x": x, **{k: jnp.asarray(v) for k, v in batch.items()}}
+            return _train_runner(step, create_state(p, tx), batch)
         return _sample_runner(lambda p, x: jax.nn.sigmoid(hm.apply(p, x)), p, x)
 
 def main():

@@ -34,6 +34,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from benchmarks.harness import MODELS, Settings, machine  # noqa: E402
+from jaxmotion import hugepages  # noqa: E402
 
 TARGETS = {"train": 1.5, "sample_k50": 2.0}  # jaxmotion / PyTorch-eager speed-ups asked for (issue 18)
 # Issue 18: a case whose jaxmotion time is above this fraction of the measured peak is limited by the machine.
@@ -46,13 +47,30 @@ WORKERS = {
 }
 
 
-def run_worker(name: str, settings: Settings, extra: list[str]) -> dict:
+def worker_env(huge: bool) -> dict:
+    """Returns the environment of every worker and peak process: the same for both frameworks.
+
+    `huge`: glibc's huge-page tunable on (`jaxmotion/hugepages.py`; what the `jaxmotion` command
+    runs with where the kernel's mode is `madvise`), else taken out of `GLIBC_TUNABLES`. PyTorch's
+    CPU allocator also takes its large tensors from glibc, so both frameworks get the same setting.
+    """
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    rest = [t for t in env.get("GLIBC_TUNABLES", "").split(":") if t and t != hugepages.TUNABLE]
+    env["GLIBC_TUNABLES"] = ":".join(rest)
+    if huge:
+        env = hugepages.with_tunable(env)
+    if not env["GLIBC_TUNABLES"]:
+        del env["GLIBC_TUNABLES"]
+    return env
+
+
+def run_worker(name: str, settings: Settings, extra: list[str], env: dict) -> dict:
     """Returns the worker's `{"info", "records"}` after running it in a fresh Python process."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / f"{name}.json"
         cmd = [sys.executable, *WORKERS[name], "--settings", json.dumps(dataclasses.asdict(settings)), "--out", str(out), *extra]
         t0 = time.perf_counter()
-        proc = subprocess.run(cmd, cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+        proc = subprocess.run(cmd, cwd=ROOT, env=env)
         if proc.returncode != 0:
             raise RuntimeError(f"benchmark worker {name!r} failed with exit code {proc.returncode}: {' '.join(cmd)}")
         result = json.loads(out.read_text())
@@ -60,13 +78,13 @@ def run_worker(name: str, settings: Settings, extra: list[str]) -> dict:
     return result
 
 
-def run_peak(framework: str, settings: Settings) -> dict:
+def run_peak(framework: str, settings: Settings, env: dict) -> dict:
     """Returns `benchmarks/peak.py`'s measurement of `framework` ("jax" or "torch"), run in a fresh process."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "peak.json"
         cmd = [sys.executable, "-m", "benchmarks.peak", "--framework", framework, "--out", str(out),
                "--sizes", ",".join(map(str, settings.peak_sizes))]
-        if subprocess.run(cmd, cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT))).returncode != 0:
+        if subprocess.run(cmd, cwd=ROOT, env=env).returncode != 0:
             raise RuntimeError(f"peak measurement failed: {' '.join(cmd)}")
         return json.loads(out.read_text())
 
@@ -175,7 +193,8 @@ def render(doc: dict) -> str:
         f"Command: `{doc['command']}` (whole run: {doc['wall_s'] / 60:.1f} min). Sizes: D = {s.dim}, "
         f"t_his = {s.t_his}, t_pred = {s.t_pred} (Bandai-Namco-2's protocol), the published layer sizes. "
         f"Every time is the median of {s.repeats} runs after {s.warmup} warm-up runs, with the interquartile "
-        "range in brackets, in milliseconds. Ratio = PyTorch time / jaxmotion time (> 1: jaxmotion faster).",
+        "range in brackets, in milliseconds. Ratio = PyTorch time / jaxmotion time (> 1: jaxmotion faster). "
+        + _pages_sentence(doc),
         "",
         _peak_paragraph(doc, peak),
         "",
@@ -186,7 +205,7 @@ def render(doc: dict) -> str:
     ]
     for r in rows:
         if r["kind"].startswith("train"):
-            stage = {"train_cvae": "CVAE", "train_ae": "autoencoder",
+            stage = {"train_cvae": "CVAE", "train_ae": "autoencoder", "train_heatmap": f"heatmap ({r['k']} futures per map)",
                      "train_generator": f"generator (nk1 x nk2 = {r['k']})"}.get(r["kind"], f"sampler (K = {r['k']})")
             lines.append(f"| {r['model']} | {stage} | {r['batch']} | {_ms(r.get('jax'))} | {_ms(r.get('torch_eager'))} | "
                          f"{_ratio(r, 'torch_eager')} | {_wps(r, 'jax')} / {_wps(r, 'torch_eager')} | {_gflop(r)} | "
@@ -249,6 +268,17 @@ def render(doc: dict) -> str:
             tc = f"{c['compile_s']:.0f}" if c.get("compile_s") == c.get("compile_s") and "compile_s" in c else "-"
             lines.append(f"| {r['case']} | {mb(j)} | {mb(e)} | {comp} | {tc} |")
     return "\n".join(lines)
+
+
+def _pages_sentence(doc: dict) -> str:
+    """Returns what memory pages both frameworks' processes ran with (`--hugepages`)."""
+    pages = doc.get("memory_pages")
+    if pages is None:
+        return "Memory pages: the system's default (run before `--hugepages` existed)."
+    on = hugepages.TUNABLE in pages["glibc_tunables"].split(":")
+    return (f"Memory pages, both frameworks: `GLIBC_TUNABLES={pages['glibc_tunables']}` (huge pages for large buffers)"
+            if on else "Memory pages, both frameworks: glibc's default (`--hugepages off`)") + \
+        f", kernel transparent-huge-page mode `{pages['thp_mode']}`."
 
 
 def _peak_paragraph(doc: dict, peak: float | None) -> str:
@@ -328,6 +358,9 @@ def main(argv=None):
                     help="re-run only --frameworks and merge them into the existing results file of --tag")
     ap.add_argument("--tag", help="results file name (default: cpu, or quick)")
     ap.add_argument("--no-readme", action="store_true", help="do not update benchmarks/README.md")
+    ap.add_argument("--hugepages", choices=("on", "off"), default="on",
+                    help="glibc's huge-page tunable for every worker, both frameworks (jaxmotion/hugepages.py; default on, "
+                         "as the jaxmotion command runs)")
     ap.add_argument("--render", action="store_true", help="only re-render the tables from the results file of --tag")
     args = ap.parse_args(argv)
     if args.render:
@@ -365,17 +398,20 @@ def main(argv=None):
                                                               for r in previous["rows"] if fw in r]}
     t0 = time.perf_counter()
     peaks = dict(previous.get("peak", {})) if previous else {}
+    env = worker_env(args.hugepages == "on")
     for fw in dict.fromkeys(PEAK_OF[f] for f in frameworks if f != "torch_compile" or args.compile_cases):
-        peaks[fw] = run_peak(fw, settings)
+        peaks[fw] = run_peak(fw, settings, env)
     for fw in frameworks:
         if fw == "torch_compile" and not args.compile_cases:
             continue
-        results[fw] = run_worker(fw, settings, ["--cases", args.compile_cases] if fw == "torch_compile" else [])
+        results[fw] = run_worker(fw, settings, ["--cases", args.compile_cases] if fw == "torch_compile" else [], env)
     results = {fw: results[fw] for fw in WORKERS if fw in results}
     doc = {
         "date": datetime.datetime.now().isoformat(timespec="seconds"),
         "command": "python benchmarks/run.py " + " ".join(sys.argv[1:] if argv is None else argv),
         "machine": machine(),
+        # What every worker ran with (`worker_env`); a run without this key predates the option (no tunable).
+        "memory_pages": {"glibc_tunables": env.get("GLIBC_TUNABLES", ""), "thp_mode": hugepages.thp_mode()},
         "settings": dataclasses.asdict(settings),
         "workers": {k: {"info": v["info"]} for k, v in results.items()},
         "peak": peaks,

@@ -260,6 +260,9 @@ def entry() -> int:
     the traceback through jaxmotion's internals is left out. `main` itself raises them (for tests
     and for code that calls it).
     """
+    from jaxmotion.hugepages import exec_with_hugepages
+
+    exec_with_hugepages()  # once, before anything runs: large XLA buffers in 2 MiB pages (jaxmotion/hugepages.py)
     from jaxmotion.errors import CheckpointError, ConfigError, DataError
 
     try:

@@ -72,6 +72,39 @@ def test_gaussian_heatmap_has_its_maxima_at_the_cells():
     assert got == {(5, 7), (20, 3), (12, 25)}
 
 
+def test_gaussian_heatmap_is_the_max_of_the_two_dimensional_bumps():
+    # The map is built from separable 1-D factors; this is the definition it must equal.
+    rng = np.random.default_rng(0)
+    cells = rng.integers(0, 24, (9, 2)).astype(np.float32)
+    mask = np.arange(9) < 7
+    u = np.arange(24, dtype=np.float64)
+    d2 = (u[None, :, None] - cells[:, 0, None, None]) ** 2 + (u[None, None, :] - cells[:, 1, None, None]) ** 2
+    want = np.exp(-d2 / (2 * 1.5**2))[mask].max(axis=0)
+    got = np.asarray(mm.gaussian_heatmap(jnp.asarray(cells), jnp.asarray(mask), 24, 1.5))
+    np.testing.assert_allclose(got, want, rtol=1e-6, atol=1e-7)
+    assert not np.asarray(mm.gaussian_heatmap(jnp.asarray(cells), jnp.zeros(9, bool), 24, 1.5)).any()
+
+
+def test_conv1x1_is_a_one_by_one_convolution():
+    import flax.linen as nn
+
+    from jaxmotion.nn.linear import Conv1x1
+
+    x = jax.random.normal(jax.random.key(0), (2, 5, 6, 3))
+    layer = Conv1x1(4)
+    params = layer.init(jax.random.key(1), x)
+    conv = nn.Conv(4, (1, 1))
+    assert jax.tree.map(jnp.shape, params) == jax.tree.map(jnp.shape, conv.init(jax.random.key(1), x))
+
+    def loss(module):
+        return lambda p, x: jnp.sum(jnp.tanh(module.apply(p, x)) * jnp.arange(4.0))
+
+    np.testing.assert_allclose(layer.apply(params, x), conv.apply(params, x), rtol=1e-5, atol=1e-6)
+    for a, b in zip(jax.tree.leaves(jax.grad(loss(layer), argnums=(0, 1))(params, x)),
+                    jax.tree.leaves(jax.grad(loss(conv), argnums=(0, 1))(params, x))):
+        np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6)
+
+
 def test_codebook_is_the_mean_code_of_a_cell_and_fills_empty_cells_from_the_nearest():
     cells = np.array([[1, 1], [1, 1], [6, 6]])
     codes = np.array([[1.0, 0.0], [3.0, 2.0], [-5.0, 5.0]], np.float32)

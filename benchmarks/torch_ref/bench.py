@@ -18,7 +18,7 @@ import time
 import numpy as np
 import torch
 
-from benchmarks.harness import Case, PeakRSS, Settings, gsps_skeleton, measure, parents_for, plan
+from benchmarks.harness import Case, PeakRSS, Settings, gsps_skeleton, heatmap_batch, measure, parents_for, plan
 from benchmarks.torch_ref import divsamp, dlow, gsps, mojo, motionmap
 
 
@@ -161,6 +161,11 @@ class Builders:
             return self._train(loss, list(ae.parameters()), torch.optim.Adam(ae.parameters(), 1e-3, amsgrad=True))
         hm = motionmap.HeatmapNet(s.dim, s.hm_size)
         x = self.data(c.batch, s.t_his)
+        if c.kind == "train_heatmap":
+            cells, batch = heatmap_batch(s, c)
+            cells, batch = torch.from_numpy(cells), {"x": x, **{k: torch.from_numpy(v) for k, v in batch.items()}}
+            loss = lambda: motionmap.heatmap_loss(hm, cells, batch, size=s.hm_size, sigma=8.0**0.5, pos_weight=10.0)
+            return self._train(loss, list(hm.parameters()), torch.optim.Adam(hm.parameters(), 1e-3, amsgrad=True))
         return self._sample(lambda: torch.sigmoid(hm(x)))
 
 def main():

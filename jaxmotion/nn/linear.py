@@ -55,3 +55,28 @@ class Dense(nn.Module):
         if self.precision == "float32":
             return jax.lax.dot_general(x, kernel, (((x.ndim - 1,), (0,)), ((), ()))) + bias
         return matmul(x, kernel, self.precision) + bias
+
+
+class Conv1x1(nn.Module):
+    """Returns a 1 x 1 convolution of channels-last `x`, `x @ kernel[0, 0] + bias`, initialised by `rule` (fan_in = input channels).
+
+    The parameters are laid out as `nn.Conv((1, 1))`'s (`kernel` `(1, 1, in, out)`, `bias` `(out,)`),
+    so weights convert to and from PyTorch's `nn.Conv2d(in, out, 1)` by a transpose. It is computed as
+    one `(pixels, in) x (in, out)` product rather than a convolution: with MotionMap's 8 channels on a
+    128 x 128 map XLA:CPU's convolution and its filter gradient ran 1.9x slower for the whole heatmap
+    network's gradient (benchmarks/README.md, "MotionMap's heatmap stage").
+    """
+
+    features: int
+    rule: str = "torch"
+
+    @nn.compact
+    def __call__(self, x: Float[ArrayLike, "... c"]) -> Float[Array, "... o"]:
+        c = x.shape[-1]
+        k_init, b_init = initializers(self.rule, c)
+        kernel = self.param("kernel", k_init, (1, 1, c, self.features), jnp.float32)
+        bias = self.param("bias", b_init, (self.features,), jnp.float32)
+        # Flattened to 2-D first: a dot over one long row axis, whose kernel gradient XLA forms as one
+        # (in, pixels) x (pixels, out) product (on the 4-D array it was a slow reduction).
+        y = jnp.reshape(x, (-1, c)) @ kernel[0, 0] + bias
+        return y.reshape(x.shape[:-1] + (self.features,))
