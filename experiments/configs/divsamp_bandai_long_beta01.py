@@ -7,10 +7,12 @@
 # At beta 0.5 the CVAE's KL stayed at 1.4-1.7 nats and its APD fell from 1.74 (step 3,000) to 1.31
 # (step 20,000), which capped DivSamp's diversity below DLow's. The question: does a weaker KL keep
 # the latent in use over the long budget?
-# Runtime (seed 0, 2026-12-03, 2-core AMD EPYC): CVAE stage 4,164 s; sampler ~0.85 s per step, stopped at
-# step ~1,070 of 4,000 (session end). Result (200 curve windows, K = 50): CVAE KL 5.3 nats, CVAE APD 2.29
-# at ADE 0.158 (beta 0.5: 1.31 at 0.156); DivSamp at sampler step 1,000 APD 3.01, ADE 0.155 (beta 0.5:
-# 1.93, 0.157). Details: experiments/README.md, "Long budget: DivSamp".
+# Runtime (seed 0, 2026-12-03 22:44-23:50 UTC, 2-core AMD EPYC family 26): 4,035 s in all (CVAE 2,314 s,
+# sampler 1,530 s, curves included). An earlier try on another AMD EPYC: CVAE 4,164 s, sampler ~0.85 s/step.
+# Result (all 1,609 test windows, K = 50): DivSamp APD 3.230, ADE 0.1550, FDE 0.1606, MMADE 0.2403; its CVAE
+# from N(0, I) APD 2.306, ADE 0.1602, KL 5.7 nats at the end (beta 0.5: DivSamp APD 1.997, ADE 0.1521; DLow
+# long: APD 2.874, ADE 0.1617, FDE 0.1574): with beta 0.1 DivSamp is more diverse than DLow at better ADE
+# and MMADE, FDE within 2%. Details: experiments/README.md, "Long budget: DivSamp".
 import dataclasses
 from pathlib import Path
 
