@@ -46,3 +46,22 @@ def test_curves_logged_per_stage_and_plotted(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "dlow_k5" in out and "last 20% of steps" in out
     assert mod.main([str(tmp_path / "cvae")]) == 1  # a folder without curve lines is reported, not drawn
+
+
+def test_a_motionmap_run_has_no_curve_point_before_its_heatmap_stage():
+    # MotionMap predicts only once its heatmap and codebook exist: during the autoencoder stage the
+    # curve has no point (it once raised KeyError inside the traced predictor and stopped the run).
+    import jax
+    import jax.numpy as jnp
+
+    from jaxmotion.models import motionmap as mm
+    from jaxmotion.models.motionmap import MotionMapConfig
+
+    cfg = Config(method="motionmap", action_metrics=False, method_config=MotionMapConfig(hm_size=16),
+                 eval_k=(5,), curve_every=10, curve_windows=8, curve_k=5, max_test_windows=20)
+    ds = ex.load_data(cfg)
+    prep = ex.prepare(ds, cfg.max_test_windows)
+    c = cfg.method_config
+    ae = mm.ae_model(c, ds.dim, ds.t_his, ds.t_pred)
+    p = ae.init(jax.random.key(0), jnp.zeros((1, ds.t_his, ds.dim)), jnp.zeros((1, ds.t_pred, ds.dim)))
+    assert ex.learning_curve(cfg, prep)({"autoencoder": p}) is None

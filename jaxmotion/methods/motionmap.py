@@ -239,9 +239,12 @@ def modes_fn(cfg, ds, params: dict):
     c, ae, ae_params = _decoder(cfg, ds, params)
     hm = mm.heatmap_model(c)
     parents = tuple(ds.skeleton.parents)
+    # Looked up now, not inside the traced function: a run whose heatmap stage is not trained yet raises
+    # KeyError here, which the learning curves take as "cannot predict yet" (experiment.learning_curve).
+    hm_params, codebook = params["heatmap"], params["codebook"]
     return jax.jit(
         lambda x: mm.predict_modes(
-            ae, ae_params, hm, params["heatmap"], params["codebook"], x, parents, min_distance=c.peak_min_distance,
+            ae, ae_params, hm, hm_params, codebook, x, parents, min_distance=c.peak_min_distance,
             threshold_rel=c.peak_threshold_rel, max_peaks=c.max_peaks, scale=c.loss_scale,
         )
     )
