@@ -1,8 +1,8 @@
 """Transparent huge pages for XLA:CPU's large buffers: when to ask glibc for them, and the restart that does.
 
 XLA:CPU allocates every large temporary and output buffer of a jitted call afresh (glibc `malloc`,
-which serves requests over 32 MB by `mmap`), and the kernel then maps it in one 4 KiB page fault at
-a time while the first kernel writes it. For the library's large arrays this costs more than the
+which serves large requests, above a threshold of at most 32 MB, by a fresh `mmap`), and the kernel
+then maps it in one 4 KiB page fault at a time while the first kernel writes it. For the library's large arrays this costs more than the
 arithmetic: a 32 MB elementwise op ran 4x slower than memory allows (8,193 page faults a call),
 MotionMap's heatmap step took 146,000 page faults, and more time in them than in its products
 (benchmarks/README.md, "Huge pages"). Where the kernel's transparent-huge-page mode is `madvise`
