@@ -186,7 +186,7 @@ def gaussian_heatmap(
     """Returns MotionMap's ground-truth map: the pixel-wise max of a Gaussian bump `exp(-|u - c|^2 / 2 sigma^2)` per valid cell."""
     u = jnp.arange(size, dtype=jnp.float32)
     # The bump is separable, exp(-dr^2 / 2 s^2) * exp(-dc^2 / 2 s^2): 2 * size exponentials per cell
-    # instead of size^2 (equal to float32 rounding; the heatmap stage's targets are 64 x 64 maps a step).
+    # instead of size^2 (equal to float32 rounding; a heatmap step draws 64 windows x 64 member bumps).
     rows = jnp.exp(-((u[None, :] - cells[:, 0, None]) ** 2) / (2 * sigma**2))  # (m, size)
     cols = jnp.exp(-((u[None, :] - cells[:, 1, None]) ** 2) / (2 * sigma**2))
     rows = jnp.where(mask[:, None], rows, 0.0)

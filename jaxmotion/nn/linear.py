@@ -63,8 +63,9 @@ class Conv1x1(nn.Module):
     The parameters are laid out as `nn.Conv((1, 1))`'s (`kernel` `(1, 1, in, out)`, `bias` `(out,)`),
     so weights convert to and from PyTorch's `nn.Conv2d(in, out, 1)` by a transpose. It is computed as
     one `(pixels, in) x (in, out)` product rather than a convolution: with MotionMap's 8 channels on a
-    128 x 128 map XLA:CPU's convolution and its filter gradient ran 1.9x slower for the whole heatmap
-    network's gradient (benchmarks/README.md, "MotionMap's heatmap stage").
+    128 x 128 map XLA:CPU's convolution and its filter gradient made the whole heatmap network's
+    gradient 1.9x slower (measured with another run sharing the cores; the quiet A/B of the heatmap
+    step is in benchmarks/README.md, "MotionMap's heatmap stage").
     """
 
     features: int
