@@ -179,7 +179,7 @@ def main(argv=None):
 
     if args.hugepages == "on":
         hugepages.exec_with_hugepages()
-    elif hugepages.TUNABLE in os.environ.get("GLIBC_TUNABLES", "").split(":"):
+    elif hugepages.has_tunable(os.environ):
         raise SystemExit("eval_speed.py --hugepages off: GLIBC_TUNABLES holds the huge-page tunable; unset it first")
     import jax
 

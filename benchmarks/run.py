@@ -54,14 +54,7 @@ def worker_env(huge: bool) -> dict:
     runs with where the kernel's mode is `madvise`), else taken out of `GLIBC_TUNABLES`. PyTorch's
     CPU allocator also takes its large tensors from glibc, so both frameworks get the same setting.
     """
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    rest = [t for t in env.get("GLIBC_TUNABLES", "").split(":") if t and t != hugepages.TUNABLE]
-    env["GLIBC_TUNABLES"] = ":".join(rest)
-    if huge:
-        env = hugepages.with_tunable(env)
-    if not env["GLIBC_TUNABLES"]:
-        del env["GLIBC_TUNABLES"]
-    return env
+    return hugepages.with_tunable(dict(os.environ, PYTHONPATH=str(ROOT)), on=huge)
 
 
 def run_worker(name: str, settings: Settings, extra: list[str], env: dict) -> dict:
@@ -275,7 +268,7 @@ def _pages_sentence(doc: dict) -> str:
     pages = doc.get("memory_pages")
     if pages is None:
         return "Memory pages: the system's default (run before `--hugepages` existed)."
-    on = hugepages.TUNABLE in pages["glibc_tunables"].split(":")
+    on = hugepages.has_tunable({"GLIBC_TUNABLES": pages["glibc_tunables"]})
     return (f"Memory pages, both frameworks: `GLIBC_TUNABLES={pages['glibc_tunables']}` (huge pages for large buffers)"
             if on else "Memory pages, both frameworks: glibc's default (`--hugepages off`)") + \
         f", kernel transparent-huge-page mode `{pages['thp_mode']}`."

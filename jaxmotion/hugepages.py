@@ -2,8 +2,8 @@
 
 XLA:CPU allocates every large temporary and output buffer of a jitted call afresh (glibc `malloc`,
 which serves large requests, above a threshold of at most 32 MB, by a fresh `mmap`), and the kernel
-then maps it in one 4 KiB page fault at a time while the first kernel writes it. For the library's large arrays this costs more than the
-arithmetic: a 32 MB elementwise op ran 4x slower than memory allows (8,193 page faults a call),
+then maps it in one 4 KiB page fault at a time while the first kernel writes it. For the library's
+large arrays this costs more than the arithmetic: a 32 MB elementwise op ran 4x slower than memory allows (8,193 page faults a call),
 MotionMap's heatmap step took 146,000 page faults, and more time in them than in its products
 (benchmarks/README.md, "Huge pages"). Where the kernel's transparent-huge-page mode is `madvise`
 (Debian's and Ubuntu's default), glibc >= 2.35 advises huge pages for its own mappings when started
@@ -54,16 +54,27 @@ def wanted(environ: dict | None = None, mode: str | None = None) -> bool:
     """Returns whether this process would gain from a restart with the tunable (see the module docstring)."""
     environ = os.environ if environ is None else environ
     mode = thp_mode() if mode is None else mode
-    if environ.get(OFF_SWITCH, "1") == "0" or TUNABLE in environ.get("GLIBC_TUNABLES", "").split(":"):
+    if environ.get(OFF_SWITCH, "1") == "0" or has_tunable(environ):
         return False
     return sys.platform.startswith("linux") and mode == "madvise" and _glibc_at_least(2, 35)
 
 
-def with_tunable(environ: dict) -> dict:
-    """Returns a copy of `environ` whose `GLIBC_TUNABLES` also holds `glibc.malloc.hugetlb=1` (other tunables kept)."""
+def _others(environ) -> list[str]:
+    return [t for t in environ.get("GLIBC_TUNABLES", "").split(":") if t and t != TUNABLE]
+
+
+def has_tunable(environ) -> bool:
+    """Returns whether `environ`'s `GLIBC_TUNABLES` holds `glibc.malloc.hugetlb=1`."""
+    return TUNABLE in environ.get("GLIBC_TUNABLES", "").split(":")
+
+
+def with_tunable(environ, on: bool = True) -> dict:
+    """Returns a copy of `environ` whose `GLIBC_TUNABLES` holds `glibc.malloc.hugetlb=1` (`on`) or not, other tunables kept."""
     env = dict(environ)
-    old = env.get("GLIBC_TUNABLES", "")
-    env["GLIBC_TUNABLES"] = f"{old}:{TUNABLE}" if old else TUNABLE
+    rest = _others(env) + ([TUNABLE] if on else [])
+    env.pop("GLIBC_TUNABLES", None)
+    if rest:
+        env["GLIBC_TUNABLES"] = ":".join(rest)
     return env
 
 

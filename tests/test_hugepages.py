@@ -30,6 +30,9 @@ def test_with_tunable_keeps_the_other_tunables():
     env = hugepages.with_tunable({"GLIBC_TUNABLES": "glibc.malloc.arena_max=2", "X": "1"})
     assert env == {"GLIBC_TUNABLES": f"glibc.malloc.arena_max=2:{hugepages.TUNABLE}", "X": "1"}
     assert hugepages.with_tunable({})["GLIBC_TUNABLES"] == hugepages.TUNABLE
+    assert hugepages.with_tunable(env)["GLIBC_TUNABLES"] == env["GLIBC_TUNABLES"]  # not added twice
+    assert hugepages.with_tunable(env, on=False) == {"GLIBC_TUNABLES": "glibc.malloc.arena_max=2", "X": "1"}
+    assert "GLIBC_TUNABLES" not in hugepages.with_tunable({"GLIBC_TUNABLES": hugepages.TUNABLE}, on=False)
 
 
 def _child_tunables(env: dict) -> str:
