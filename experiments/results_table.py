@@ -80,7 +80,12 @@ HEADLINE_EXTRA = ("bone_deformation", "angle_violation", "prior_nll", "mode_reca
 
 
 def train_minutes(run: Path) -> float | None:
-    """Returns the run's training wall time in minutes: the sum over stages of the last logged `time_s`."""
+    """Returns the run's training wall time in minutes: over stages, the sum of each process's last `time_s`.
+
+    `time_s` counts from the start of the process that trained the stage, so a stage resumed with
+    `--resume` starts again near 0: where `time_s` falls from one record to the next, the segment
+    before it is added (its steps after the last checkpoint, trained twice, are counted twice).
+    """
     total, found = 0.0, False
     for log in run.glob("*/log.jsonl"):
         last = None
@@ -90,6 +95,8 @@ def train_minutes(run: Path) -> float | None:
             except ValueError:
                 continue
             if "time_s" in rec:
+                if last is not None and rec["time_s"] < last:
+                    total += last  # a resumed process: the earlier one's time
                 last = rec["time_s"]
         if last is not None:
             total, found = total + last, True
