@@ -105,7 +105,10 @@ def train_minutes(run: Path) -> float | None:
 
 def headline(run_dirs: list[str], metrics: tuple[str, ...]) -> str:
     """Returns the cross-method markdown tables (one per K) described in the module docstring."""
-    rows: dict = defaultdict(lambda: defaultdict(dict))  # (K, sampler) -> config -> seed -> metrics
+    # (K, MM ground truth, sampler) -> config -> seed -> metrics. Runs whose multimodal ground truth
+    # differs (MotionMap's default takes it from the training windows) get tables of their own:
+    # their MMADE / MMFDE are not comparable with the protocol's.
+    rows: dict = defaultdict(lambda: defaultdict(dict))
     minutes: dict = defaultdict(list)
     for d in run_dirs:
         f = Path(d) / "metrics.json"
@@ -114,7 +117,7 @@ def headline(run_dirs: list[str], metrics: tuple[str, ...]) -> str:
         records = json.loads(f.read_text())
         for rec in records:
             seed = int(rec.get("seed", rec["config"].get("seed", 0)))
-            rows[(int(rec["K"]), rec["method"])][rec["config"]["name"]][seed] = rec["metrics"]
+            rows[(int(rec["K"]), rec.get("mm_source", "test"), rec["method"])][rec["config"]["name"]][seed] = rec["metrics"]
         m = train_minutes(Path(d))
         if m is not None:
             minutes[records[0]["config"]["name"]].append(m)
@@ -122,12 +125,13 @@ def headline(run_dirs: list[str], metrics: tuple[str, ...]) -> str:
     cols = list(metrics) + extra
     order = {name: i for i, name in enumerate(LABELS)}
     out = []
-    for k in sorted({k for k, _ in rows}, reverse=True):
-        out += [f"K = {k}", "", "| sampler | budget (config) | seeds | train min | " + " | ".join(cols) + " |",
+    for k, mm in sorted({(k, mm) for k, mm, _ in rows}, key=lambda km: (-km[0], km[1] != "test", km[1])):
+        title = f"K = {k}" + ("" if mm == "test" else f", MM ground truth: {mm!r} (not comparable with the protocol's)")
+        out += [title, "", "| sampler | budget (config) | seeds | train min | " + " | ".join(cols) + " |",
                 "|" + " --- |" * (4 + len(cols))]
-        samplers = sorted((s for kk, s in rows if kk == k), key=lambda s: (order.get(s, len(order)), s))
+        samplers = sorted((s for kk, m, s in rows if (kk, m) == (k, mm)), key=lambda s: (order.get(s, len(order)), s))
         for s in samplers:
-            configs = rows[(k, s)]
+            configs = rows[(k, mm, s)]
             for name in sorted(configs)[: 1 if s == "zero_velocity" else None]:  # zero-velocity is the same in every run
                 by_seed = configs[name]
                 arr = np.array([[by_seed[sd].get(m, np.nan) for m in cols] for sd in sorted(by_seed)], float)

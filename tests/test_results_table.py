@@ -29,3 +29,19 @@ def test_train_minutes_adds_the_time_of_a_process_that_was_resumed(tmp_path):
 
 def test_train_minutes_is_none_without_logs(tmp_path):
     assert _module().train_minutes(tmp_path) is None
+
+
+def _run(path: Path, name: str, mm: str, ade: float):
+    path.mkdir(parents=True)
+    rec = lambda method, a: {"K": 5, "method": method, "seed": 0, "mm_source": mm,  # noqa: E731
+                             "config": {"name": name, "seed": 0}, "metrics": {"ADE": a, "MMADE": a + 0.1}}
+    (path / "metrics.json").write_text(json.dumps([rec("zero_velocity", 0.43), rec("divsamp", ade)]))
+
+
+def test_headline_keeps_runs_with_another_multimodal_ground_truth_in_their_own_table(tmp_path):
+    _run(tmp_path / "a", "divsamp_long", "test", 0.22)
+    _run(tmp_path / "b", "motionmap_long", "train", 0.27)
+    text = _module().headline([str(tmp_path / "a"), str(tmp_path / "b")], ("ADE", "MMADE"))
+    first, second = text.split("K = 5, MM ground truth: 'train'")
+    assert first.startswith("K = 5\n") and "divsamp_long" in first and "motionmap_long" not in first
+    assert "motionmap_long" in second and "divsamp_long" not in second

@@ -23,7 +23,7 @@ def get_config() -> Config:
             # Q lr 5e-4 as dlow_bandai.py (the release's 1e-4 is for ~15.6k steps of batch 32).
             q=QConfig(num_steps=4000, batch_size=16, lr=5e-4),
         ),
-        eval_k=(50,),
+        eval_k=(50, 5),  # issue 14 asks for K = 50 and K = 5 tables (DLow and MOJO train a Q network per K)
         ckpt_every=500,
         curve_every=500,
     )
