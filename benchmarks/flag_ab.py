@@ -1,0 +1,94 @@
+"""A/B of an XLA flag (a process-wide setting, so one fresh process per measurement, A and B alternating).
+
+    flock /tmp/jaxmotion-heavy.lock python benchmarks/flag_ab.py --flag=--xla_cpu_multi_thread_eigen=false \
+        --cases dlow/train_cvae mojo/train_cvae divsamp/train_cvae --pairs 5          # ~5 min on the 2-core CPU
+
+`benchmarks/ab.py` compares two settings inside one process; an XLA flag is read once, when jax starts,
+so here each measurement is a fresh process (`--worker`) with `XLA_FLAGS` unset (A) or set to `--flag`
+(B), in the order A, B, A, B, ... (`--pairs` pairs), and both with the huge-page tunable as the
+`jaxmotion` command runs. Each worker builds the named cases of `benchmarks/run.py`'s plan with the
+benchmark's own builders, warms them up twice and prints the median of `--repeats` calls. Prints the
+per-pair figures and, per case, the median over pairs of A and of B and their ratio A / B (> 1: the flag
+is faster). Writes `--out` (JSON) if given.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+
+def worker(cases: list[str], repeats: int) -> dict[str, float]:
+    """Returns `{case name: median ms}` for the plan's cases whose names start with one of `cases`."""
+    from benchmarks.harness import Settings, plan
+    from benchmarks.jax_bench import Builders
+
+    base, out = Settings(), {}
+    for c in plan(base):
+        if not any(c.name.startswith(p) for p in cases):
+            continue
+        run, _trace, _compile = getattr(Builders(base), c.model)(c)
+        run()
+        run()
+        ts = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            run()
+            ts.append(time.perf_counter() - t0)
+        out[c.name] = statistics.median(ts) * 1e3
+    if not out:
+        raise SystemExit(f"flag_ab: no case of the plan starts with {cases}")
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--flag", required=True, help="the XLA flag of setting B, e.g. --flag=--xla_cpu_multi_thread_eigen=false")
+    ap.add_argument("--cases", nargs="+", default=["dlow/train_cvae"], help="prefixes of benchmarks/run.py's case names")
+    ap.add_argument("--pairs", type=int, default=5)
+    ap.add_argument("--repeats", type=int, default=15, help="timed calls per case per worker")
+    ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.worker:
+        print(json.dumps(worker(args.cases, args.repeats)))
+        return 0
+    if args.pairs < 1:
+        ap.error(f"--pairs must be >= 1, got {args.pairs}")
+    from benchmarks.harness import machine
+    from jaxmotion.hugepages import with_tunable
+
+    env0 = with_tunable({k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}, on=True)
+    settings = {"A": env0, "B": {**env0, "XLA_FLAGS": args.flag}}
+    runs: dict[str, list[dict]] = {"A": [], "B": []}
+    cmd = [sys.executable, __file__, "--worker", f"--flag={args.flag}", "--repeats", str(args.repeats), "--cases", *args.cases]
+    for i in range(args.pairs):
+        for lab in ("A", "B"):
+            res = subprocess.run(cmd, env=settings[lab], capture_output=True, text=True)
+            if res.returncode != 0:
+                raise SystemExit(f"flag_ab: worker {lab} failed:\n{res.stderr[-2000:]}")
+            runs[lab].append(json.loads(res.stdout.strip().splitlines()[-1]))
+            print(f"pair {i + 1} {lab}: " + ", ".join(f"{k} {v:.1f} ms" for k, v in runs[lab][-1].items()), flush=True)
+    rows = []
+    for case in runs["A"][0]:
+        a = statistics.median(r[case] for r in runs["A"])
+        b = statistics.median(r[case] for r in runs["B"])
+        rows.append({"case": case, "A_ms": round(a, 2), "B_ms": round(b, 2), "ratio": round(a / b, 3)})
+        print(f"{case:<32s} A (no flag) {a:8.2f} ms  B ({args.flag}) {b:8.2f} ms  A / B {a / b:.2f}x")
+    if args.out:
+        args.out.write_text(json.dumps({"machine": machine(), "flag": args.flag, "pairs": args.pairs,
+                                        "repeats": args.repeats, "rows": rows, "runs": runs}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
