@@ -20,7 +20,6 @@ import os
 import statistics
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -29,7 +28,7 @@ sys.path.insert(0, str(ROOT))
 
 def worker(cases: list[str], repeats: int) -> dict[str, float]:
     """Returns `{case name: median ms}` for the plan's cases whose names start with one of `cases`."""
-    from benchmarks.harness import Settings, plan
+    from benchmarks.harness import Settings, measure, plan
     from benchmarks.jax_bench import Builders
 
     base, out = Settings(), {}
@@ -37,14 +36,7 @@ def worker(cases: list[str], repeats: int) -> dict[str, float]:
         if not any(c.name.startswith(p) for p in cases):
             continue
         run, _trace, _compile = getattr(Builders(base), c.model)(c)
-        run()
-        run()
-        ts = []
-        for _ in range(repeats):
-            t0 = time.perf_counter()
-            run()
-            ts.append(time.perf_counter() - t0)
-        out[c.name] = statistics.median(ts) * 1e3
+        out[c.name] = measure(run, warmup=2, repeats=repeats)["median_s"] * 1e3
     if not out:
         raise SystemExit(f"flag_ab: no case of the plan starts with {cases}")
     return out
