@@ -117,6 +117,18 @@ def test_kl_terms():
     assert float(losses.kld_affine(jnp.full(3, 2.0), jnp.zeros(3))) == pytest.approx(3 * 0.5 * (4 - 1 - np.log(4)), rel=1e-5)
 
 
+def test_kld_affine_stays_finite_where_a_crosses_zero():
+    # The Q network's scale `a` is a linear output: a zero entry made the release's log(a^2) -inf and
+    # a synthetic run's loss inf within three steps (losses.kld_affine's docstring).
+    a = jnp.array([0.0, 1e-12, 0.5, -2.0])
+    b = jnp.zeros(4)
+    val, grad = jax.value_and_grad(lambda a: losses.kld_affine(a, b))(a)
+    assert np.isfinite(float(val)) and np.all(np.isfinite(np.asarray(grad)))
+    # Away from zero the floor does not change the KL: the exact value of the last two entries.
+    exact = -0.5 * sum(1 + np.log(v**2) - v**2 for v in (0.5, -2.0))
+    assert float(losses.kld_affine(a[2:], b[2:])) == pytest.approx(exact, rel=1e-6)
+
+
 @pytest.mark.slow
 def test_dlow_diversity_loss():
     same = jnp.zeros((5, 3, 2))
