@@ -99,6 +99,20 @@ def test_eval_mode_futures_do_not_depend_on_the_other_windows(models):
     np.testing.assert_allclose(np.asarray(y_all[2:3]), np.asarray(y_one), atol=1e-5)
 
 
+def test_decode_k_equals_decoding_each_latent_alone(models):
+    # decode_k folds K into the batch; each future must be what the decoder gives for its latent alone.
+    cvae, cv, sampler, sv = models
+    x = _x(b=3, seed=2)
+    cx = divsamp.condition_nodes(x, T_PRED, NDCT)
+    z = jax.random.normal(jax.random.key(4), (3, 4, NZ))
+    y = divsamp.decode_k(cvae, cv, cx, z, t_his=T_HIS, t_pred=T_PRED)
+    assert y.shape == (3, 4, T_PRED, x.shape[-1])
+    for k in range(4):
+        nodes = cvae.apply(cv, cx, z[:, k], train=False, method=divsamp.DivSampCVAE.decode)
+        alone = divsamp.from_nodes(nodes, T_HIS + T_PRED)[:, T_HIS:]
+        np.testing.assert_allclose(np.asarray(y[:, k]), np.asarray(alone), atol=1e-5)
+
+
 @pytest.mark.slow
 def test_one_basis_vector_gives_one_gaussian():
     # M = 1: every row of W is [1], all K points coincide, so all K Gaussians are the same.
