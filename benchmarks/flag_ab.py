@@ -1,12 +1,16 @@
-"""A/B of an XLA flag (a process-wide setting, so one fresh process per measurement, A and B alternating).
+"""A/B of a process-wide setting (an XLA flag or an environment variable), one fresh process per measurement.
 
     flock /tmp/jaxmotion-heavy.lock python benchmarks/flag_ab.py --flag=--xla_cpu_multi_thread_eigen=false \
         --cases dlow/train_cvae mojo/train_cvae divsamp/train_cvae --pairs 5          # ~5 min on the 2-core CPU
+    flock /tmp/jaxmotion-heavy.lock python benchmarks/flag_ab.py \
+        --env GLIBC_TUNABLES=glibc.malloc.hugetlb=1:glibc.malloc.mmap_max=0 --cases gsps/train_generator
 
 `benchmarks/ab.py` compares two settings inside one process; an XLA flag is read once, when jax starts,
 so here each measurement is a fresh process (`--worker`) with `XLA_FLAGS` unset (A) or set to `--flag`
 (B), in the order A, B, A, B, ... (`--pairs` pairs), and both with the huge-page tunable as the
-`jaxmotion` command runs. Each worker builds the named cases of `benchmarks/run.py`'s plan with the
+`jaxmotion` command runs. With `--env NAME=VALUE` (repeatable) instead of, or besides, `--flag`,
+B also sets those variables (a `GLIBC_TUNABLES` given here replaces A's, so include the huge-page
+tunable in it where B should keep huge pages). Each worker builds the named cases of `benchmarks/run.py`'s plan with the
 benchmark's own builders, warms them up twice and prints the median of `--repeats` calls. Prints the
 per-pair figures and, per case, the median over pairs of A and of B and their ratio A / B (> 1: the flag
 is faster). Writes `--out` (JSON) if given.
@@ -44,7 +48,8 @@ def worker(cases: list[str], repeats: int) -> dict[str, float]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--flag", required=True, help="the XLA flag of setting B, e.g. --flag=--xla_cpu_multi_thread_eigen=false")
+    ap.add_argument("--flag", default=None, help="the XLA flag of setting B, e.g. --flag=--xla_cpu_multi_thread_eigen=false")
+    ap.add_argument("--env", action="append", default=[], metavar="NAME=VALUE", help="an environment variable of setting B")
     ap.add_argument("--cases", nargs="+", default=["dlow/train_cvae"], help="prefixes of benchmarks/run.py's case names")
     ap.add_argument("--pairs", type=int, default=5)
     ap.add_argument("--repeats", type=int, default=15, help="timed calls per case per worker")
@@ -56,13 +61,20 @@ def main(argv=None) -> int:
         return 0
     if args.pairs < 1:
         ap.error(f"--pairs must be >= 1, got {args.pairs}")
+    if args.flag is None and not args.env:
+        ap.error("give setting B: --flag and/or --env NAME=VALUE")
+    bad = [e for e in args.env if "=" not in e or not e.split("=", 1)[0]]
+    if bad:
+        ap.error(f"--env takes NAME=VALUE, got {bad}")
+    extra = dict(e.split("=", 1) for e in args.env)
+    label = " ".join([args.flag or ""] + args.env).strip()
     from benchmarks.harness import machine
     from jaxmotion.hugepages import with_tunable
 
     env0 = with_tunable({k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}, on=True)
-    settings = {"A": env0, "B": {**env0, "XLA_FLAGS": args.flag}}
+    settings = {"A": env0, "B": {**env0, **({"XLA_FLAGS": args.flag} if args.flag else {}), **extra}}
     runs: dict[str, list[dict]] = {"A": [], "B": []}
-    cmd = [sys.executable, __file__, "--worker", f"--flag={args.flag}", "--repeats", str(args.repeats), "--cases", *args.cases]
+    cmd = [sys.executable, __file__, "--worker", "--repeats", str(args.repeats), "--cases", *args.cases]
     for i in range(args.pairs):
         for lab in ("A", "B"):
             res = subprocess.run(cmd, env=settings[lab], capture_output=True, text=True)
@@ -75,9 +87,10 @@ def main(argv=None) -> int:
         a = statistics.median(r[case] for r in runs["A"])
         b = statistics.median(r[case] for r in runs["B"])
         rows.append({"case": case, "A_ms": round(a, 2), "B_ms": round(b, 2), "ratio": round(a / b, 3)})
-        print(f"{case:<32s} A (no flag) {a:8.2f} ms  B ({args.flag}) {b:8.2f} ms  A / B {a / b:.2f}x")
+        print(f"{case:<32s} A {a:8.2f} ms  B ({label}) {b:8.2f} ms  A / B {a / b:.2f}x")
     if args.out:
-        args.out.write_text(json.dumps({"machine": machine(), "flag": args.flag, "pairs": args.pairs,
+        args.out.write_text(json.dumps({"machine": machine(), "flag": args.flag, "env": extra, "a_env": {
+                                            "GLIBC_TUNABLES": env0.get("GLIBC_TUNABLES", "")}, "pairs": args.pairs,
                                         "repeats": args.repeats, "rows": rows, "runs": runs}, indent=1))
     return 0
 
