@@ -12,7 +12,7 @@ so here each measurement is a fresh process (`--worker`) with `XLA_FLAGS` unset 
 B also sets those variables (a `GLIBC_TUNABLES` given here replaces A's, so include the huge-page
 tunable in it where B should keep huge pages). Each worker builds the named cases of `benchmarks/run.py`'s plan with the
 benchmark's own builders, warms them up twice and prints the median of `--repeats` calls. Prints the
-per-pair figures and, per case, the median over pairs of A and of B and their ratio A / B (> 1: the flag
+per-pair figures and, per case, the median over pairs of A and of B and their ratio A / B (> 1: setting B
 is faster). Writes `--out` (JSON) if given.
 """
 

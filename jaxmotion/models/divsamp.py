@@ -315,8 +315,7 @@ def decode_k(cvae: DivSampCVAE, variables, cx: Float[ArrayLike, "b j c"], z: Flo
     (benchmarks/README.md, "DivSamp's K futures folded into the batch").
     """
     b, k = z.shape[:2]
-    cxk = jnp.broadcast_to(cx[:, None], (b, k) + cx.shape[1:]).reshape((b * k,) + cx.shape[1:])
-    nodes = cvae.apply(variables, cxk, z.reshape((b * k,) + z.shape[2:]), train=False, method=DivSampCVAE.decode)
+    nodes = cvae.apply(variables, jnp.repeat(cx, k, axis=0), z.reshape((b * k,) + z.shape[2:]), train=False, method=DivSampCVAE.decode)
     return from_nodes(nodes, t_his + t_pred)[:, t_his:].reshape(b, k, t_pred, -1)
 
 
