@@ -4,6 +4,8 @@
         --cases dlow/train_cvae mojo/train_cvae divsamp/train_cvae --pairs 5          # ~5 min on the 2-core CPU
     flock /tmp/jaxmotion-heavy.lock python benchmarks/flag_ab.py \
         --env GLIBC_TUNABLES=glibc.malloc.hugetlb=1:glibc.malloc.mmap_max=0 --cases gsps/train_generator
+    git clone -q . /tmp/base && flock /tmp/jaxmotion-heavy.lock python benchmarks/flag_ab.py \
+        --base-tree /tmp/base --cases dlow/train_cvae --pairs 4     # a code change: this tree (B) against /tmp/base (A)
 
 `benchmarks/ab.py` compares two settings inside one process; an XLA flag is read once, when jax starts,
 so here each measurement is a fresh process (`--worker`) with `XLA_FLAGS` unset (A) or set to `--flag`
@@ -14,6 +16,11 @@ tunable in it where B should keep huge pages). Each worker builds the named case
 benchmark's own builders, warms them up twice and prints the median of `--repeats` calls. Prints the
 per-pair figures and, per case, the median over pairs of A and of B and their ratio A / B (> 1: setting B
 is faster). Writes `--out` (JSON) if given.
+
+With `--base-tree DIR` (another checkout, e.g. a clone of the commit before a change), A's workers run
+that checkout's code (its `benchmarks/flag_ab.py --worker`, which puts DIR first on the import path)
+and B's this one, so a change to the library is measured the same way as a flag, in alternating fresh
+processes; `--flag` / `--env` are then optional (when given they still apply to B only).
 """
 
 from __future__ import annotations
@@ -54,6 +61,8 @@ def main(argv=None) -> int:
     ap.add_argument("--pairs", type=int, default=5)
     ap.add_argument("--repeats", type=int, default=15, help="timed calls per case per worker")
     ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--base-tree", type=Path, default=None, metavar="DIR",
+                    help="setting A runs the code of this other checkout (B: this one)")
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker:
@@ -61,23 +70,28 @@ def main(argv=None) -> int:
         return 0
     if args.pairs < 1:
         ap.error(f"--pairs must be >= 1, got {args.pairs}")
-    if args.flag is None and not args.env:
-        ap.error("give setting B: --flag and/or --env NAME=VALUE")
+    if args.flag is None and not args.env and args.base_tree is None:
+        ap.error("give setting B: --flag and/or --env NAME=VALUE, or setting A's code: --base-tree DIR")
+    if args.base_tree is not None and not (args.base_tree / "benchmarks" / "flag_ab.py").is_file():
+        ap.error(f"--base-tree {args.base_tree}: no benchmarks/flag_ab.py there (give a checkout of this repository)")
     bad = [e for e in args.env if "=" not in e or not e.split("=", 1)[0]]
     if bad:
         ap.error(f"--env takes NAME=VALUE, got {bad}")
     extra = dict(e.split("=", 1) for e in args.env)
-    label = " ".join([args.flag or ""] + args.env).strip()
+    label = " ".join([args.flag or ""] + args.env).strip() or "this tree"
     from benchmarks.harness import machine
     from jaxmotion.hugepages import with_tunable
 
     env0 = with_tunable({k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}, on=True)
     settings = {"A": env0, "B": {**env0, **({"XLA_FLAGS": args.flag} if args.flag else {}), **extra}}
     runs: dict[str, list[dict]] = {"A": [], "B": []}
-    cmd = [sys.executable, __file__, "--worker", "--repeats", str(args.repeats), "--cases", *args.cases]
+    tail = ["--worker", "--repeats", str(args.repeats), "--cases", *args.cases]
+    cmds = {lab: [sys.executable, str(Path(__file__).resolve()), *tail] for lab in ("A", "B")}
+    if args.base_tree is not None:
+        cmds["A"] = [sys.executable, str((args.base_tree / "benchmarks" / "flag_ab.py").resolve()), *tail]
     for i in range(args.pairs):
         for lab in ("A", "B"):
-            res = subprocess.run(cmd, env=settings[lab], capture_output=True, text=True)
+            res = subprocess.run(cmds[lab], env=settings[lab], capture_output=True, text=True)
             if res.returncode != 0:
                 raise SystemExit(f"flag_ab: worker {lab} failed:\n{res.stderr[-2000:]}")
             runs[lab].append(json.loads(res.stdout.strip().splitlines()[-1]))
@@ -89,7 +103,8 @@ def main(argv=None) -> int:
         rows.append({"case": case, "A_ms": round(a, 2), "B_ms": round(b, 2), "ratio": round(a / b, 3)})
         print(f"{case:<32s} A {a:8.2f} ms  B ({label}) {b:8.2f} ms  A / B {a / b:.2f}x")
     if args.out:
-        args.out.write_text(json.dumps({"machine": machine(), "flag": args.flag, "env": extra, "a_env": {
+        args.out.write_text(json.dumps({"machine": machine(), "flag": args.flag, "env": extra,
+                                        "base_tree": str(args.base_tree) if args.base_tree else None, "a_env": {
                                             "GLIBC_TUNABLES": env0.get("GLIBC_TUNABLES", "")}, "pairs": args.pairs,
                                         "repeats": args.repeats, "rows": rows, "runs": runs}, indent=1))
     return 0

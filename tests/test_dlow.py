@@ -46,6 +46,27 @@ def test_scanned_gru_equals_a_python_loop_of_cells():
     for t in range(7):
         h = cell.apply({"params": p["params"]["cell"]}, h, x[:, t])
         np.testing.assert_allclose(np.asarray(hs[:, t]), np.asarray(h), atol=1e-5)
+    np.testing.assert_array_equal(np.asarray(gru.apply(p, x, last_only=True)), np.asarray(hs[:, -1]))
+
+
+def test_cvae_forward_and_gradients_equal_the_unshared_past_code(cvae):
+    """`__call__` encodes the past once for the encoder and the decoder: the same numbers as encoding it twice."""
+    model, params, x, y = cvae
+    key = jax.random.key(3)
+
+    def shared(p):
+        return model.apply(p, x, y, key)
+
+    def twice(p):  # the definition: encode (which encodes the past itself), then decode (which does again)
+        mu, logvar = model.apply(p, x, y, method=dlow.DLowCVAE.encode)
+        z = mu + jnp.exp(0.5 * logvar) * jax.random.normal(key, mu.shape)
+        return model.apply(p, x, z, method=dlow.DLowCVAE.decode), mu, logvar
+
+    for a, b in zip(shared(params), twice(params)):
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-6, atol=1e-6)
+    loss = lambda f: lambda p: sum(jnp.sum(o ** 2) for o in f(p))
+    ga, gb = jax.grad(loss(shared))(params), jax.grad(loss(twice))(params)
+    jax.tree.map(lambda a, b: np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-6), ga, gb)
 
 
 def test_decoder_scan_equals_step_by_step_decoding(cvae):

@@ -1,4 +1,4 @@
-"""benchmarks/flag_ab.py: setting B must be given, and `--env` must be NAME=VALUE (checked before any worker runs)."""
+"""benchmarks/flag_ab.py: setting B (or A's checkout) must be given, `--env` must be NAME=VALUE, `--base-tree` a checkout (checked before any worker runs)."""
 
 import sys
 from pathlib import Path
@@ -20,3 +20,9 @@ def test_flag_ab_env_must_be_name_equals_value(bad, capsys):
     with pytest.raises(SystemExit):
         flag_ab.main(["--env", bad])
     assert "NAME=VALUE" in capsys.readouterr().err
+
+
+def test_flag_ab_base_tree_must_be_a_checkout(tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        flag_ab.main(["--base-tree", str(tmp_path), "--pairs", "1"])
+    assert "no benchmarks/flag_ab.py there" in capsys.readouterr().err

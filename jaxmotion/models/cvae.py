@@ -114,17 +114,21 @@ class GRUCVAE(nn.Module):
 
     def encode_x(self, x: Float[ArrayLike, "b t_his d"]) -> Float[Array, "b h"]:
         """Returns the last hidden state of the past encoder GRU."""
-        return self.x_rnn(x)[:, -1]
+        return self.x_rnn(x, last_only=True)
 
-    def encode(self, x: Float[ArrayLike, "b t_his d"], y: Float[ArrayLike, "b t_pred d"]):
-        """Returns `(mu, logvar)` of q(z | X, Y): one Gaussian (vector) or one per DCT band (MOJO Sec. 3.3)."""
-        h_x = self.encode_x(x)
-        h_y = self.e_rnn(y)  # a hidden state per future frame keeps full temporal resolution
+    def encode(self, x: Float[ArrayLike, "b t_his d"], y: Float[ArrayLike, "b t_pred d"], h_x=None):
+        """Returns `(mu, logvar)` of q(z | X, Y): one Gaussian (vector) or one per DCT band (MOJO Sec. 3.3).
+
+        Pass `h_x` (`encode_x(x)`) to reuse it.
+        """
+        if h_x is None:
+            h_x = self.encode_x(x)
         if self.latent == "dct":
+            h_y = self.e_rnn(y)  # a hidden state per future frame keeps full temporal resolution
             h = jnp.concatenate([jnp.broadcast_to(h_x[:, None], h_y.shape[:-1] + h_x.shape[-1:]), h_y], axis=-1)
             h = dct(h)  # (b, t_pred bands, 2 nh): frequency bands of the encoder states
         else:
-            h = jnp.concatenate([h_x, h_y[:, -1]], axis=-1)
+            h = jnp.concatenate([h_x, self.e_rnn(y, last_only=True)], axis=-1)
         h = self.e_mlp(h)  # the same layers for every band
         return self.e_mu(h), self.e_logvar(h)
 
@@ -191,9 +195,15 @@ class GRUCVAE(nn.Module):
         return ys
 
     def __call__(self, x, y, key: jax.Array | None = None):
-        """Returns `(y_rec, mu, logvar)`; samples z by reparameterisation when `key` is given, else z = mu."""
-        mu, logvar = self.encode(x, y)
-        return self.decode(x, reparameterise(mu, logvar, key)), mu, logvar
+        """Returns `(y_rec, mu, logvar)`; samples z by reparameterisation when `key` is given, else z = mu.
+
+        The past is encoded once and its code `h_x` given to both the encoder and the decoder. XLA
+        merges two identical forward scans, but their gradients stay two backward loops over the past
+        (one per use); one `h_x` sums the two cotangents before the single backward scan.
+        """
+        h_x = self.encode_x(x)
+        mu, logvar = self.encode(x, y, h_x)
+        return self.decode(x, reparameterise(mu, logvar, key), h_x), mu, logvar
 
 
 def decode_k(model: GRUCVAE, params, x: Float[ArrayLike, "b t_his d"], z) -> Float[Array, "b k t_pred d"]:

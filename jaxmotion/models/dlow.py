@@ -121,7 +121,7 @@ class QTrunk(nn.Module):
     @nn.compact
     def __call__(self, x: Float[ArrayLike, "b t_his d"]):
         mm = self.precision
-        h = GRU(self.nh_rnn, mm, name="x_rnn")(x)[:, -1]
+        h = GRU(self.nh_rnn, mm, name="x_rnn")(x, last_only=True)
         h = MLP(self.nh_mlp, dense_init=self.dense_init, precision=mm, name="mlp")(h)
         # One Dense with n_heads * nk * nz outputs is exactly n_heads unshared linear heads.
         shape = (-1, self.n_heads, self.nk, self.nz)

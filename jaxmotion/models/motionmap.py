@@ -311,10 +311,10 @@ class MotionMapAE(nn.Module):
         self.uncertainty_out = Dense((self.t_his + self.t_pred) * (self.dim // 3), rule=init)
 
     def encode_x(self, x: Float[Array, "b t_his d"]) -> Float[Array, "b h"]:
-        return self.enc_x(x)[:, -1]
+        return self.enc_x(x, last_only=True)
 
     def encode_y(self, y: Float[Array, "b t_pred d"]) -> Float[Array, "b h"]:
-        return self.enc_y(y)[:, -1]
+        return self.enc_y(y, last_only=True)
 
     def decode(self, x: Float[Array, "b t_his d"], z_y: Float[Array, "b h"]):
         """Returns `(frames (b, t_his + t_pred, d), log_sigma (b, t_his + t_pred, d // 3))` from X and a future code."""
@@ -339,7 +339,7 @@ class HeatmapNet(nn.Module):
 
     @nn.compact
     def __call__(self, x: Float[Array, "b t d"]) -> Float[Array, "b size size"]:
-        h = GRU(self.nh_rnn, name="context")(x[:, -self.frames :])[:, -1]
+        h = GRU(self.nh_rnn, name="context")(x[:, -self.frames :], last_only=True)
         h = nn.LayerNorm(name="norm")(nn.elu(h))
         m = nn.elu(Dense(self.size * self.size, rule=self.dense_init, name="to_map")(h)).reshape(-1, self.size, self.size, 1)
 

@@ -59,7 +59,11 @@ class GRUCell(nn.Module):
 
 
 class GRU(nn.Module):
-    """Returns all hidden states `(batch, time, features)` of a GRU run by `lax.scan` over time (parameters `cell/...`)."""
+    """Returns all hidden states `(batch, time, features)` of a GRU run by `lax.scan` over time (parameters `cell/...`).
+
+    With `last_only=True` it returns the last state `(batch, features)` alone: the loop then stacks
+    no per-step outputs, and its backward pass adds no (zero) per-step cotangents.
+    """
 
     features: int
     precision: str = "float32"  # as GRUCell.precision
@@ -68,7 +72,9 @@ class GRU(nn.Module):
     unroll: int = 1
 
     @nn.compact
-    def __call__(self, x: Float[ArrayLike, "b t i"], h0: Float[ArrayLike, "b h"] | None = None) -> Float[Array, "b t h"]:
+    def __call__(
+        self, x: Float[ArrayLike, "b t i"], h0: Float[ArrayLike, "b h"] | None = None, last_only: bool = False
+    ) -> Float[Array, "b t h"] | Float[Array, "b h"]:
         if h0 is None:
             h0 = jnp.zeros(x.shape[:-2] + (self.features,), x.dtype)
 
@@ -82,7 +88,7 @@ class GRU(nn.Module):
 
         def step(h, gi_t):
             h = gru_update(gi_t, matmul(h, p["weight_hh"], mm) + p["bias_hh"], h)
-            return h, h
+            return h, None if last_only else h
 
-        _, hs = jax.lax.scan(step, h0, gi, unroll=self.unroll)
-        return jnp.swapaxes(hs, 0, 1)
+        h_last, hs = jax.lax.scan(step, h0, gi, unroll=self.unroll)
+        return h_last if last_only else jnp.swapaxes(hs, 0, 1)
