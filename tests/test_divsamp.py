@@ -160,6 +160,35 @@ def test_bone_lengths():
     np.testing.assert_allclose(np.asarray(divsamp.bone_lengths(frames, (-1, 0, 1))), [[2.0, 3.0]], atol=1e-6)
 
 
+def test_bone_vectors_by_product_equal_the_gathered_differences():
+    """`frames @ bone_matrix` is exactly `p_i - p_parent(i)` (a branching tree), and so are its gradients."""
+    parents = (-1, 0, 1, 2, 0, 4, 1, 6, 7, 1, 9, 2)  # spine, a leg, two arms from joint 1, a head
+    parents = parents[:5] + (6,) + parents[6:]  # joint 5's parent listed after it: order does not matter
+    frames = jnp.asarray(np.random.default_rng(0).normal(size=(4, 7, 3 * (len(parents) - 1))), jnp.float32)
+
+    def gathered(f):
+        pos = jnp.concatenate([jnp.zeros(f.shape[:-1] + (1, 3)), f.reshape(f.shape[:-1] + (-1, 3))], axis=-2)
+        child = np.arange(1, len(parents))
+        return pos[..., child, :] - pos[..., np.asarray(parents)[child], :]
+
+    np.testing.assert_array_equal(np.asarray(divsamp.bone_vectors(frames, parents)), np.asarray(gathered(frames)))
+    w = jnp.asarray(np.random.default_rng(1).normal(size=(len(parents) - 1, 3)), jnp.float32)
+    g_new = jax.grad(lambda f: jnp.sum(divsamp.bone_vectors(f, parents) * w))(frames)
+    g_old = jax.grad(lambda f: jnp.sum(gathered(f) * w))(frames)
+    np.testing.assert_allclose(np.asarray(g_new), np.asarray(g_old), rtol=1e-6, atol=1e-6)
+
+
+@pytest.mark.parametrize("parents", [(-1, 0, -1), (-1, 1, 0), (-1, 0, 3)])
+def test_bone_matrix_refuses_a_joint_without_a_parent(parents):
+    with pytest.raises(ValueError, match="parent"):
+        divsamp.bone_matrix(parents)
+
+
+def test_bone_vectors_refuse_frames_of_another_skeleton():
+    with pytest.raises(ValueError, match="do not fit a skeleton of 2 joints"):
+        divsamp.bone_lengths(jnp.zeros((1, 6)), (-1, 0))
+
+
 @pytest.mark.slow
 def test_sampler_step_trains_the_sampler_only_and_updates_its_statistics(models):
     cvae, cv, sampler, sv = models

@@ -292,7 +292,7 @@ def test_divsamp_cvae_match_in_train_and_eval_mode(divsamp_pair):
         tn, tmu, tlv = tc_train(tt(cx), tt(cw), tt(eps))
     rel_close(jn, tn)
     rel_close(jmu, tmu)
-    parents = (-1, 0)  # D = 6: two joints below the root, both children of it
+    parents = (-1, 0, 0)  # D = 6: two joints below the root, both children of it
     kw = dict(t_his=T_HIS, parents=parents, beta=0.5, lambda_v=1000.0, lambda_his=1.0, lambda_limb=1000.0)
     jl, (jmet, _) = divsamp.cvae_loss(jc, v, batch, key, **kw)
     with torch.no_grad():

@@ -51,7 +51,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from jaxmotion.metrics import pairwise_sq_distances
-from jaxmotion.models.divsamp import bone_lengths, condition_nodes, from_nodes
+from jaxmotion.models.divsamp import bone_lengths, bone_vectors, condition_nodes, from_nodes
 from jaxmotion.nn.gcn import GCLStack, GraphConv
 
 PART_SPLITS = ("lower_upper", "five")
@@ -140,9 +140,7 @@ def positions(frames: Float[Array, "... d"]) -> Float[Array, "... j 3"]:
 
 def limb_directions(frames: Float[Array, "... d"], parents: tuple[int, ...]) -> Float[Array, "... d"]:
     """Returns the unit limb directions `d_i = (p_i - p_parent(i)) / ||.||`, i = 1..J-1, flattened (GSPS Sec. 3.2)."""
-    pos = positions(frames)
-    child = np.arange(1, len(parents))
-    v = pos[..., child, :] - pos[..., np.asarray(parents)[child], :]
+    v = bone_vectors(frames, parents)
     v = v / jnp.maximum(jnp.linalg.norm(v, axis=-1, keepdims=True), 1e-8)
     return v.reshape(frames.shape)
 
