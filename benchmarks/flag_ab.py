@@ -39,15 +39,17 @@ sys.path.insert(0, str(ROOT))
 
 def worker(cases: list[str], repeats: int) -> dict[str, float]:
     """Returns `{case name: median ms}` for the plan's cases whose names start with one of `cases`."""
-    from benchmarks.harness import Settings, measure, plan
-    from benchmarks.jax_bench import Builders
+    from benchmarks.harness import Settings, measure, plan, reference_probe
+    from benchmarks.jax_bench import Builders, matmul_probe
 
     base, out = Settings(), {}
+    probe = matmul_probe(base.probe_n)
+    ref = reference_probe(probe)
     for c in plan(base):
         if not any(c.name.startswith(p) for p in cases):
             continue
         run, _trace, _compile = getattr(Builders(base), c.model)(c)
-        out[c.name] = measure(run, warmup=2, repeats=repeats)["median_s"] * 1e3
+        out[c.name] = measure(run, 2, repeats, probe, ref, base.slow_factor, base.probe_min_call_s)["median_s"] * 1e3
     if not out:
         raise SystemExit(f"flag_ab: no case of the plan starts with {cases}")
     return out

@@ -23,7 +23,7 @@ import numpy as np
 import optax
 
 from benchmarks import flops
-from benchmarks.harness import Case, PeakRSS, Settings, gsps_skeleton, heatmap_batch, measure, parents_for, plan
+from benchmarks.harness import Case, PeakRSS, Settings, gsps_skeleton, heatmap_batch, measure, parents_for, plan, reference_probe
 from jaxmotion.models import divsamp, dlow, gsps, mojo
 from jaxmotion.models import motionmap as mm
 from jaxmotion.train.loop import bn_optimizer, make_bn_train_step
@@ -207,6 +207,15 @@ class Builders:
             return _train_runner(step, create_state(p, tx), batch)
         return _sample_runner(lambda p, x: jax.nn.sigmoid(hm.apply(p, x)), p, x)
 
+def matmul_probe(n: int):
+    """Returns a call that runs one fixed n x n float32 product in jax (`harness.measure`'s machine-speed gate), or None for n = 0."""
+    if not n:
+        return None
+    a = jax.random.normal(jax.random.key(0), (n, n), jnp.float32)
+    f = jax.jit(lambda a: a @ a)
+    return lambda: f(a).block_until_ready()
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--settings", required=True)
@@ -216,12 +225,14 @@ def main():
     mem = PeakRSS()
     builders = Builders(s)
     records = []
+    probe = matmul_probe(s.probe_n)
+    ref = reference_probe(probe)
     for c in plan(s):
         rss0 = mem.reset()
         t0 = time.perf_counter()
         run, trace_s, compile_s = getattr(builders, c.model)(c)
         rec = dict(dataclasses.asdict(c), case=c.name, framework="jax", trace_s=trace_s, compile_s=compile_s)
-        rec.update(measure(run, s.warmup, s.repeats))
+        rec.update(measure(run, s.warmup, s.repeats, probe, ref, s.slow_factor, s.probe_min_call_s))
         rec.update(rss_before_mb=rss0, peak_rss_mb=mem.peak_mb(), wall_s=time.perf_counter() - t0)
         # After the timings and the memory peak: counting lowers the case once more, with its loops unrolled.
         rec.update(run.count(), xla_compiled_flops=float(run.compiled.cost_analysis()["flops"]))

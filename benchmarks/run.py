@@ -187,7 +187,7 @@ def render(doc: dict) -> str:
         f"t_his = {s.t_his}, t_pred = {s.t_pred} (Bandai-Namco-2's protocol), the published layer sizes. "
         f"Every time is the median of {s.repeats} runs after {s.warmup} warm-up runs, with the interquartile "
         "range in brackets, in milliseconds. Ratio = PyTorch time / jaxmotion time (> 1: jaxmotion faster). "
-        + _pages_sentence(doc),
+        + _pages_sentence(doc) + _slow_sentence(doc, s),
         "",
         _peak_paragraph(doc, peak),
         "",
@@ -261,6 +261,22 @@ def render(doc: dict) -> str:
             tc = f"{c['compile_s']:.0f}" if c.get("compile_s") == c.get("compile_s") and "compile_s" in c else "-"
             lines.append(f"| {r['case']} | {mb(j)} | {mb(e)} | {comp} | {tc} |")
     return "\n".join(lines)
+
+
+def _slow_sentence(doc: dict, s: Settings) -> str:
+    """Returns what the machine-speed gate of `harness.measure` left out in this run (nothing for runs before it)."""
+    recs = [(r["case"], fw, r[fw]) for r in doc["rows"] for fw in ("jax", "torch_eager", "torch_compile")
+            if "calls" in r.get(fw, {})]
+    if not recs or s.slow_factor <= 1:
+        return ""
+    head = (f" Calls of {s.probe_min_call_s * 1e3:g} ms or more are each followed by a fixed {s.probe_n} x {s.probe_n} "
+            f"product in the same framework, and a call whose product took more than {s.slow_factor:g}x its fastest "
+            "is not counted (the machine was slow then; `harness.measure`)")
+    slow = [(c, fw, r) for c, fw, r in recs if r["slow_calls"]]
+    if not slow:
+        return head + f": no call was left out ({len(recs)} probed cases)."
+    names = {"jax": "jaxmotion", "torch_eager": "eager", "torch_compile": "compile"}
+    return head + ". Left out: " + "; ".join(f"{c} {names[fw]} {r['slow_calls']} of {r['calls']}" for c, fw, r in slow) + "."
 
 
 def _pages_sentence(doc: dict) -> str:
@@ -354,6 +370,9 @@ def main(argv=None):
     ap.add_argument("--hugepages", choices=("on", "off"), default="on",
                     help="glibc's huge-page tunable for every worker, both frameworks (jaxmotion/hugepages.py; default on, "
                          "as the jaxmotion command runs)")
+    ap.add_argument("--slow-factor", type=float,
+                    help="leave out a call whose probe product after it took more than this times its fastest "
+                         "(harness.measure's gate, e.g. 1.5; default 0: off, every call counted and the probe recorded)")
     ap.add_argument("--render", action="store_true", help="only re-render the tables from the results file of --tag")
     args = ap.parse_args(argv)
     if args.render:
@@ -373,6 +392,10 @@ def main(argv=None):
         kw["repeats"] = args.repeats
     if args.warmup is not None:
         kw["warmup"] = args.warmup
+    if args.slow_factor is not None:
+        if args.slow_factor < 0 or 0 < args.slow_factor <= 1:
+            ap.error(f"--slow-factor must be 0 (off) or above 1, got {args.slow_factor}")
+        kw["slow_factor"] = args.slow_factor
     settings = Settings.quick(**kw) if args.quick else Settings(**kw)
     tag = args.tag or ("quick" if args.quick else "cpu")
     out = ROOT / "benchmarks" / "results" / f"{tag}.json"

@@ -18,7 +18,7 @@ import time
 import numpy as np
 import torch
 
-from benchmarks.harness import Case, PeakRSS, Settings, gsps_skeleton, heatmap_batch, measure, parents_for, plan
+from benchmarks.harness import Case, PeakRSS, Settings, gsps_skeleton, heatmap_batch, measure, parents_for, plan, reference_probe
 from benchmarks.torch_ref import divsamp, dlow, gsps, mojo, motionmap
 
 
@@ -168,6 +168,14 @@ class Builders:
             return self._train(loss, list(hm.parameters()), torch.optim.Adam(hm.parameters(), 1e-3, amsgrad=True))
         return self._sample(lambda: torch.sigmoid(hm(x)))
 
+def matmul_probe(n: int):
+    """Returns a call that runs one fixed n x n float32 product in PyTorch (`harness.measure`'s machine-speed gate), or None for n = 0."""
+    if not n:
+        return None
+    a = torch.randn(n, n, generator=torch.Generator().manual_seed(0))
+    return lambda: torch.mm(a, a)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--settings", required=True)
@@ -182,6 +190,8 @@ def main():
     mem = PeakRSS()
     builders = Builders(s, args.compile)
     records = []
+    probe = matmul_probe(s.probe_n)
+    ref = reference_probe(probe)
     for c in plan(s):
         if kinds and c.kind not in kinds:
             continue
@@ -198,7 +208,7 @@ def main():
             print(f"{fw} {c.name}: FAILED {rec['error']}", flush=True)
             continue
         rec["compile_s"] = builders.compile_s
-        rec.update(measure(run, s.warmup, s.repeats))
+        rec.update(measure(run, s.warmup, s.repeats, probe, ref, s.slow_factor, s.probe_min_call_s))
         rec.update(rss_before_mb=rss0, peak_rss_mb=mem.peak_mb(), wall_s=time.perf_counter() - t0)
         records.append(rec)
         print(f"{fw} {c.name}: {rec['median_s'] * 1e3:.2f} ms", flush=True)

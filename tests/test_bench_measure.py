@@ -1,0 +1,83 @@
+"""benchmarks/harness.measure's machine-speed gate: calls made while the probe product ran slow are not counted."""
+
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from benchmarks import harness  # noqa: E402
+
+
+class FakeClock:
+    """A clock that only moves when the scripted `run` or `probe` is called."""
+
+    def __init__(self, monkeypatch):
+        self.now = 0.0
+        monkeypatch.setattr(harness.time, "perf_counter", lambda: self.now)
+
+    def scripted(self, durations, twice=False):
+        """Returns a call taking the given durations in turn; `twice`: each is taken by two calls (a probe's warm-up and timed call)."""
+        it = iter([d for d in durations for _ in range(2 if twice else 1)])
+
+        def call():
+            self.now += next(it)
+        return call
+
+
+def test_calls_followed_by_a_slow_probe_are_left_out_and_replaced(monkeypatch):
+    clock = FakeClock(monkeypatch)
+    # 2 warm-up calls, then calls 3-5 ran while the machine was at half speed (call and probe both 2x).
+    run = clock.scripted([0.06, 0.06] + [0.06, 0.06, 0.12, 0.12, 0.12, 0.06, 0.06, 0.06])
+    probe = clock.scripted([0.010, 0.010, 0.010] + [0.010, 0.011, 0.020, 0.021, 0.020, 0.010, 0.010, 0.011], twice=True)
+    rec = harness.measure(run, warmup=2, repeats=5, probe=probe, slow_factor=1.5)
+    assert rec["calls"] == 8 and rec["slow_calls"] == 3 and rec["n"] == 5
+    assert rec["median_s"] == pytest.approx(0.06) and rec["max_s"] == pytest.approx(0.06)
+    assert rec["probe_ms_min"] == pytest.approx(10.0)
+
+
+def test_without_a_slow_stretch_nothing_is_left_out(monkeypatch):
+    clock = FakeClock(monkeypatch)
+    run = clock.scripted([0.05] * 2 + [0.05, 0.07, 0.06])
+    probe = clock.scripted([0.01] * 3 + [0.012, 0.010, 0.011], twice=True)
+    rec = harness.measure(run, warmup=2, repeats=3, probe=probe, slow_factor=1.5)
+    assert (rec["calls"], rec["slow_calls"], rec["n"]) == (3, 0, 3) and rec["median_s"] == pytest.approx(0.06)
+
+
+def test_a_machine_slow_throughout_stops_after_max_calls_and_keeps_the_best_probed_call(monkeypatch):
+    clock = FakeClock(monkeypatch)
+    # The pre-probes were fast, every probe after a call slow: the gate gives up after 3 x repeats calls.
+    run = clock.scripted([0.05] * 2 + [0.1, 0.1, 0.09, 0.1, 0.1, 0.1])
+    probe = clock.scripted([0.01] * 3 + [0.03, 0.03, 0.02, 0.03, 0.03, 0.03], twice=True)
+    rec = harness.measure(run, warmup=2, repeats=2, probe=probe, slow_factor=1.5)
+    assert (rec["calls"], rec["slow_calls"], rec["n"]) == (6, 5, 1)
+    assert rec["median_s"] == pytest.approx(0.09)
+
+
+def test_short_calls_are_not_probed(monkeypatch):
+    clock = FakeClock(monkeypatch)
+    run = clock.scripted([0.001] * 5)
+
+    def probe():
+        raise AssertionError("a call under probe_min_call_s must not be probed")
+    rec = harness.measure(run, warmup=2, repeats=3, probe=probe)
+    assert rec["n"] == 3 and "calls" not in rec
+
+
+def test_a_case_run_entirely_in_a_slow_stretch_is_judged_against_the_workers_reference(monkeypatch):
+    clock = FakeClock(monkeypatch)
+    # The worker measured 2 ms at its start; this whole case ran at 4 ms probes: every call is left out.
+    run = clock.scripted([0.06] * 2 + [0.09] * 6)
+    probe = clock.scripted([0.004] * 9, twice=True)
+    rec = harness.measure(run, warmup=2, repeats=2, probe=probe, ref_s=0.002, slow_factor=1.5)
+    assert (rec["calls"], rec["slow_calls"]) == (6, 5) and rec["probe_ms_min"] == pytest.approx(2.0)
+    assert harness.measure(clock.scripted([0.06] * 4), 2, 2, clock.scripted([0.004] * 5, twice=True), slow_factor=1.5)["slow_calls"] == 0
+
+
+def test_by_default_every_call_counts_and_the_probe_is_recorded(monkeypatch):
+    clock = FakeClock(monkeypatch)
+    run = clock.scripted([0.06] * 2 + [0.06, 0.12, 0.06])
+    probe = clock.scripted([0.010] * 3 + [0.010, 0.020, 0.011], twice=True)
+    rec = harness.measure(run, warmup=2, repeats=3, probe=probe)
+    assert (rec["calls"], rec["slow_calls"], rec["n"]) == (3, 0, 3) and rec["max_s"] == pytest.approx(0.12)
+    assert rec["probe_ms_min"] == pytest.approx(10.0) and rec["probe_ms_median"] == pytest.approx(11.0)
