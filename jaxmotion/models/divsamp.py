@@ -32,12 +32,13 @@ from typing import Literal
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
-import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from jaxmotion.dct import dct, idct
 from jaxmotion.gumbel import COEFFICIENT_KINDS, sample_coefficients
 from jaxmotion.losses import dlow_diversity, hinge_diversity, kld_normal
+# The skeleton's bones live with the metrics (motion transfer uses them too); kept importable from here.
+from jaxmotion.metrics import bone_lengths, bone_matrix, bone_vectors  # noqa: F401
 from jaxmotion.models.cvae import reparameterise
 from jaxmotion.nn.gcn import GCLStack, GraphConv
 from jaxmotion.nn.batchnorm import RUNNING_VARS, BatchNorm
@@ -163,42 +164,6 @@ def from_nodes(nodes: Float[ArrayLike, "b j c"], n_frames: int) -> Float[Array, 
 def condition_nodes(x: Float[ArrayLike, "b t_his d"], t_pred: int, n_dct: int) -> Float[Array, "b j c"]:
     """Returns the DCT node features of the padded history: the input of both networks."""
     return to_nodes(pad_history(x, t_pred), n_dct)
-
-
-def bone_matrix(parents: tuple[int, ...]) -> np.ndarray:
-    """Returns the `(D, D)` matrix `B` (D = 3 (J - 1)) with `frames @ B` = the bone vectors `p_i - p_parent(i)`, i = 1..J-1.
-
-    `frames` are root-relative and root-dropped (PROTOCOL sec. 1: the root sits at the origin, so a
-    bone from the root is its child's position). `B` holds only 0 and +-1, so the product is exactly
-    the subtraction. It replaces two gathers over the joint axis, whose gradients are scatter-adds:
-    in GSPS's generator step (1,600 futures) those took ~5% of the step.
-    """
-    parents = tuple(int(p) for p in parents)
-    bad = [i for i in range(1, len(parents)) if not 0 <= parents[i] < len(parents) or parents[i] == i]
-    if bad:
-        raise ValueError(f"bone_matrix: joint {bad[0]}'s parent is {parents[bad[0]]}; every joint but the root (joint 0) "
-                         f"needs another joint of the {len(parents)} as its parent")
-    m = np.zeros((len(parents) - 1,) * 2, np.float32)  # m[i - 1, k - 1]: joint k's weight in bone i
-    for i in range(1, len(parents)):
-        m[i - 1, i - 1] = 1.0
-        if parents[i] > 0:
-            m[i - 1, parents[i] - 1] = -1.0
-    return np.kron(m.T, np.eye(3, dtype=np.float32))
-
-
-def bone_vectors(frames: Float[ArrayLike, "... d"], parents: tuple[int, ...]) -> Float[Array, "... b 3"]:
-    """Returns the `(..., J - 1, 3)` bone vectors `p_i - p_parent(i)` of root-relative, root-dropped frame vectors."""
-    frames = jnp.asarray(frames)
-    if frames.shape[-1] != 3 * (len(parents) - 1):
-        raise ValueError(f"bone_vectors: frames of {frames.shape[-1]} values do not fit a skeleton of {len(parents)} joints "
-                         f"(root-dropped frames have 3 (J - 1) = {3 * (len(parents) - 1)})")
-    v = frames @ jnp.asarray(bone_matrix(parents))
-    return v.reshape(v.shape[:-1] + (-1, 3))
-
-
-def bone_lengths(frames: Float[ArrayLike, "... d"], parents: tuple[int, ...]) -> Float[Array, "... b"]:
-    """Returns the `J - 1` bone lengths of root-relative, root-dropped frame vectors (PROTOCOL sec. 1)."""
-    return jnp.linalg.norm(bone_vectors(frames, parents), axis=-1)
 
 
 # --------------------------------------------------------------------------------------------
