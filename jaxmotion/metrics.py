@@ -353,10 +353,8 @@ def motion_transfer(
     the skeleton's (root first, dropped from the frame vectors).
     """
     fp = frame_parents(parents)
-    src = source.reshape(source.shape[:-1] + (-1, 3))
-    tgt = target.reshape(target.shape[:-1] + (-1, 3))
-    shape = jnp.broadcast_shapes(src.shape[:-2], tgt.shape[:-2]) + (3,)
     bones_src, bones_tgt = bone_vectors(source, parents), bone_vectors(target, parents)
+    shape = jnp.broadcast_shapes(bones_src.shape[:-2], bones_tgt.shape[:-2]) + (3,)
     out: list = []
     for j, p in enumerate(fp):
         v_src, v_tgt = bones_src[..., j, :], bones_tgt[..., j, :]
