@@ -207,6 +207,7 @@ class Builders:
             return _train_runner(step, create_state(p, tx), batch)
         return _sample_runner(lambda p, x: jax.nn.sigmoid(hm.apply(p, x)), p, x)
 
+
 def matmul_probe(n: int):
     """Returns a call that runs one fixed n x n float32 product in jax (`harness.measure`'s machine-speed gate), or None for n = 0."""
     if not n:

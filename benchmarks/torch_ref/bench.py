@@ -168,6 +168,7 @@ class Builders:
             return self._train(loss, list(hm.parameters()), torch.optim.Adam(hm.parameters(), 1e-3, amsgrad=True))
         return self._sample(lambda: torch.sigmoid(hm(x)))
 
+
 def matmul_probe(n: int):
     """Returns a call that runs one fixed n x n float32 product in PyTorch (`harness.measure`'s machine-speed gate), or None for n = 0."""
     if not n:
