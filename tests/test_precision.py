@@ -39,11 +39,28 @@ def test_bf16_product_rounds_the_operands_and_accumulates_in_float32():
     np.testing.assert_allclose(ebf, e32, rtol=0, atol=0.05 * float(jnp.abs(e32).max()))
 
 
-@pytest.mark.parametrize("fn", ["matmul", "graph_matmul"])
+def test_node_major_adjacency_product_and_its_gradients_are_the_einsums():
+    a = jax.random.normal(jax.random.key(0), (6, 6))
+    h = jax.random.normal(jax.random.key(1), (6, 4, 3, 5))
+    ct = jax.random.normal(jax.random.key(2), (6, 4, 3, 5))
+    plain = lambda a, h: jnp.einsum("ij,j...->i...", a, h)  # noqa: E731
+    out, vjp = jax.vjp(P.node_matmul, a, h)
+    ref, vjp_ref = jax.vjp(plain, a, h)
+    np.testing.assert_allclose(out, ref, rtol=1e-6, atol=1e-6)
+    for got, want in zip(vjp(ct), vjp_ref(ct)):
+        assert got.shape == want.shape
+        np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-5)
+    assert P.node_matmul(a, h[:, 0, 0]).shape == (6, 5)  # no middle axes
+    with jax.enable_x64(True):  # float32 keeps the operands' dtype: float64 stays float64
+        a64 = jnp.asarray(np.asarray(a), jnp.float64)
+        assert P.node_matmul(a64, jnp.asarray(np.asarray(h), jnp.float64)).dtype == jnp.float64
+
+
+@pytest.mark.parametrize("fn", ["matmul", "graph_matmul", "node_matmul"])
 def test_bf16_gradients_are_bf16_products_of_the_rounded_operands(fn):
     a = jax.random.normal(jax.random.key(0), (4, 6, 6) if fn == "matmul" else (6, 6))
-    b = jax.random.normal(jax.random.key(1), (6, 5) if fn == "matmul" else (4, 6, 5))
-    ct = jax.random.normal(jax.random.key(2), (4, 6, 5))
+    b = jax.random.normal(jax.random.key(1), {"matmul": (6, 5), "graph_matmul": (4, 6, 5), "node_matmul": (6, 4, 5)}[fn])
+    ct = jax.random.normal(jax.random.key(2), (6, 4, 5) if fn == "node_matmul" else (4, 6, 5))
     f = getattr(P, fn)
     out, vjp = jax.vjp(lambda a, b: f(a, b, "bf16"), a, b)
     da, db = vjp(ct)
