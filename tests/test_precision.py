@@ -39,7 +39,9 @@ def test_bf16_product_rounds_the_operands_and_accumulates_in_float32():
     np.testing.assert_allclose(ebf, e32, rtol=0, atol=0.05 * float(jnp.abs(e32).max()))
 
 
-def test_node_major_adjacency_product_and_its_gradients_are_the_einsums():
+@pytest.mark.parametrize("two_axis_min", [P.NODE_GRAD_TWO_AXIS_MIN, 0])  # both forms of dA
+def test_node_major_adjacency_product_and_its_gradients_are_the_einsums(monkeypatch, two_axis_min):
+    monkeypatch.setattr(P, "NODE_GRAD_TWO_AXIS_MIN", two_axis_min)
     a = jax.random.normal(jax.random.key(0), (6, 6))
     h = jax.random.normal(jax.random.key(1), (6, 4, 3, 5))
     ct = jax.random.normal(jax.random.key(2), (6, 4, 3, 5))

@@ -105,14 +105,20 @@ def graph_matmul(a: Float[ArrayLike, "j j"], h: Float[ArrayLike, "... j o"], pre
 
 
 # The node-major adjacency product `A H` with H laid out (J, ..., F), for GraphConv(node_major=True).
-# Written as a plain `(J, J) @ (J, rest)` product, its gradient `dA = ct @ H^T` contracts the two
-# operands over their last axis (rest = batch x features, 409,600 long in GSPS's generator step):
-# XLA:CPU's YNNPACK kernels run that transposed-operand shape at 1/2.4 the speed of the same product
-# with H transposed first (20.1 vs 8.4 ms for (20, 409600) x (20, 409600); benchmarks/README.md,
-# "The adjacency gradient"). Contracting over H's middle and last axes as two dimensions makes XLA
-# transpose H into (rest, J) and run the fast form. dH = A^T ct is written to come out node-major.
+# Its gradient `dA = ct @ H^T` contracts the two operands over their last axis, rest = batch x
+# features long. For long contractions XLA:CPU's YNNPACK kernel for that transposed-operand shape
+# is slow and erratic: (20, 409600) x (20, 409600) took 7.9-21.8 ms in separate runs on the 2-core
+# AMD EPYC (32 MiB L3), where contracting over H's middle and last axes as two dimensions, which
+# makes XLA transpose H into (rest, J) first and run the plain form, took 8.4-9.1 ms. Below ~300k
+# the transposed-operand form is the faster one (16k: 0.15 vs 0.27 ms; 205k: 2.8-3.3 vs 4.2-4.3 ms),
+# and DivSamp's CVAE step (16k) was 5% slower with the two-axis form, so it is used from
+# `NODE_GRAD_TWO_AXIS_MIN` on (GSPS's generator at the release's sizes: 409,600). dH = A^T ct is
+# written to come out node-major. benchmarks/README.md, "The adjacency gradient", has the A/B.
 # bfloat16 keeps the 2-D product (`_matmul_bf16`): XLA:CPU has no bf16 x bf16 -> f32 kernel for the
 # multi-axis forms (DotThunk: UNIMPLEMENTED).
+NODE_GRAD_TWO_AXIS_MIN = 2**18
+
+
 @jax.custom_vjp
 def _node_f32(a, h):
     return jax.lax.dot_general(a, h, (((1,), (0,)), ((), ())))
@@ -124,7 +130,11 @@ def _node_f32_fwd(a, h):
 
 def _node_f32_bwd(res, ct):
     a, h = res
-    da = jax.lax.dot_general(ct, h, (((1, 2), (1, 2)), ((), ())))  # (J, J)
+    j = h.shape[0]
+    if h.shape[1] * h.shape[2] >= NODE_GRAD_TWO_AXIS_MIN:
+        da = jax.lax.dot_general(ct, h, (((1, 2), (1, 2)), ((), ())))
+    else:
+        da = jax.lax.dot_general(ct.reshape(j, -1), h.reshape(j, -1), (((1,), (1,)), ((), ())))
     dh = jax.lax.dot_general(a, ct, (((0,), (0,)), ((), ())))  # (J, M, F)
     return da, dh
 
