@@ -27,17 +27,25 @@
 #   DLow            4     1.186   0.3338  0.3852  0.3652  0.3979  0.3641
 #   DLow mean +- sd       1.239   0.3160  0.3627  0.3512  0.3788  0.3514
 #     (seeds 0-4)         +-0.108 +-0.027 +-0.033 +-0.019 +-0.025 +-0.018
+#   DLow            5     1.399   0.2732  0.3117  0.3278  0.3484  0.3204   (seeds 5-9: 2026-12-04, 2-core AMD
+#   DLow            6     1.334   0.2845  0.3229  0.3343  0.3545  0.3280    EPYC family 26, commit 11d1759;
+#   DLow            7     1.195   0.3396  0.3853  0.3665  0.3962  0.3682    experiments/results/
+#   DLow            8     1.447   0.2719  0.3078  0.3220  0.3319  0.3234    dlow_bandai_seeds5_9.json)
+#   DLow            9     1.180   0.3350  0.3828  0.3654  0.3958  0.3642
+#   DLow mean +- sd       1.275   0.3084  0.3524  0.3472  0.3721  0.3461
+#     (seeds 0-9)         +-0.114 +-0.030 +-0.036 +-0.019 +-0.027 +-0.021
 #   authors' code, the same windows, batch streams and budget (issue 11's harness, float32), seeds 0-4:
 #     ADE 0.2803 0.3040 0.2992 0.2870 0.3277, mean 0.2996 +- 0.018; FDE mean 0.3463 +- 0.022;
 #     MMADE mean 0.3424 +- 0.011 (issue 11's first run: ADE 0.2927 FDE 0.3300 MMADE 0.3374).
-# jaxmotion is 5.5% (ADE), 4.7% (FDE), 2.6% (MMADE) above the authors' five-seed means, well inside the
-# seed noise (Welch p = 0.30 / 0.39 / 0.39; 95% interval of the ADE gap +-11.6%). The CVAE lands in one of
-# two basins: ADE ~0.27-0.30 with APD ~1.3-1.4, or ADE ~0.33 with APD ~1.17. Which one is decided by the
+# Over ten seeds jaxmotion is 2.9% (ADE), 1.8% (FDE), 1.4% (MMADE) above the authors' five-seed means,
+# inside the seed noise (ADE: Welch p = 0.50; seeds 0-4 alone: +5.5%, seeds 5-9 alone: +0.4%). The CVAE
+# lands in one of two basins: ADE ~0.27-0.30 with APD ~1.3-1.45, or ADE ~0.33-0.34 with APD ~1.17-1.2.
+# Which one is decided by the
 # initial weights, not by jaxmotion's code: trained by jaxmotion (its batches, noise and optimiser) from
 # the authors' initial weights of seeds 0 and 2, the CVAE reaches ADE 0.2914 and 0.2891, where jaxmotion's
 # own draws of those seeds gave 0.3332 and 0.3349 and the authors' code 0.2803 and 0.2992; from their
 # seed-4 weights (their code: the worse basin, 0.3266) jaxmotion ends in the worse basin too (0.3367).
-# jaxmotion's draws fell there at 3 of 5 seeds, the authors' at 1 of 5 (Fisher p = 0.52): chance, not
+# jaxmotion's draws fell there at 5 of 10 seeds, the authors' at 1 of 5 (Fisher p = 0.58): chance, not
 # code (README, "Bandai-Namco-2"). The Q network barely moves off its CVAE (diversity term 0.98-0.99 of its maximum at
 # the end: d_scale 100 is tuned for Human3.6M's 100-frame futures; Bandai's pairwise distances are
 # ~1.2 m, so exp(-d^2/100) ~ 1).
