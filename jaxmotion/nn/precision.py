@@ -108,9 +108,9 @@ def graph_matmul(a: Float[ArrayLike, "j j"], h: Float[ArrayLike, "... j o"], pre
 # Its gradient `dA = ct @ H^T` contracts the two operands over their last axis, rest = batch x
 # features long. For long contractions XLA:CPU's YNNPACK kernel for that transposed-operand shape
 # is slow: (20, 409600) x (20, 409600) took 20.0-22.1 ms in five of six separate runs (one 7.9) on
-# the 2-core AMD EPYC (32 MiB L3), where contracting over H's middle and last axes as two dimensions, which
-# makes XLA transpose H into (rest, J) first and run the plain form, took 8.4-9.1 ms. Below ~300k
-# the transposed-operand form is the faster one (16k: 0.15 vs 0.27 ms; 205k: 2.8-3.6 vs 4.2-4.3 ms),
+# the 2-core AMD EPYC (32 MiB L3). Contracting over H's middle and last axes as two dimensions
+# makes XLA transpose H into (rest, J) first and run the plain form: 8.4-9.1 ms. Below ~300k the
+# transposed-operand form is the faster one (16k: 0.15 vs 0.27 ms; 205k: 2.8-3.6 vs 4.2-4.3 ms),
 # and DivSamp's CVAE step (16k) was 5% slower with the two-axis form, so it is used from
 # `NODE_GRAD_TWO_AXIS_MIN` on (GSPS's generator at the release's sizes: 409,600). dH = A^T ct is
 # written to come out node-major. benchmarks/README.md, "The adjacency gradient", has the A/B.
