@@ -39,7 +39,7 @@
 #     MMADE mean 0.3424 +- 0.011 (issue 11's first run: ADE 0.2927 FDE 0.3300 MMADE 0.3374).
 # Over ten seeds jaxmotion is 2.9% (ADE), 1.8% (FDE), 1.4% (MMADE) above the authors' five-seed means,
 # inside the seed noise (ADE: Welch p = 0.50; seeds 0-4 alone: +5.5%, seeds 5-9 alone: +0.4%). The CVAE
-# lands in one of two basins: ADE ~0.27-0.30 with APD ~1.3-1.45, or ADE ~0.33-0.34 with APD ~1.17-1.2.
+# lands in one of two basins: ADE ~0.27-0.30 with APD ~1.3-1.4, or ADE ~0.33-0.34 with APD ~1.17-1.2.
 # Which one is decided by the
 # initial weights, not by jaxmotion's code: trained by jaxmotion (its batches, noise and optimiser) from
 # the authors' initial weights of seeds 0 and 2, the CVAE reaches ADE 0.2914 and 0.2891, where jaxmotion's
