@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import jax
 import jax.numpy as jnp
@@ -56,6 +57,20 @@ def test_node_major_adjacency_product_and_its_gradients_are_the_einsums(monkeypa
     with jax.enable_x64(True):  # float32 keeps the operands' dtype: float64 stays float64
         a64 = jnp.asarray(np.asarray(a), jnp.float64)
         assert P.node_matmul(a64, jnp.asarray(np.asarray(h), jnp.float64)).dtype == jnp.float64
+
+
+@pytest.mark.parametrize("shape", [(4, 1024, 256), (4, 8, 32)])  # M x F = 2^18 (two-axis form), 2^8 (2-D form)
+def test_node_major_adjacency_gradient_takes_the_form_its_size_calls_for(shape):
+    # Lowered only, not run: which contraction dA is written as (benchmarks/README.md, "The adjacency gradient").
+    a = jax.ShapeDtypeStruct((4, 4), jnp.float32)
+    h = jax.ShapeDtypeStruct(shape, jnp.float32)
+    grad = jax.grad(lambda a, h: jnp.sum(P.node_matmul(a, h) ** 2), argnums=(0, 1))
+    dots = [line for line in jax.jit(grad).lower(a, h).as_text().splitlines() if "dot_general" in line]
+    da = [line for line in dots if line.rstrip().endswith("tensor<4x4xf32>")]
+    assert len(da) == 1
+    big = math.prod(h.shape[1:]) >= P.NODE_GRAD_TWO_AXIS_MIN
+    assert ("contracting_dims = [1, 2] x [1, 2]" in da[0]) == big
+    assert ("contracting_dims = [1] x [1]" in da[0]) == (not big)
 
 
 @pytest.mark.parametrize("fn", ["matmul", "graph_matmul", "node_matmul"])
