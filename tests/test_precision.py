@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 
 import jax
 import jax.numpy as jnp
@@ -38,6 +39,28 @@ def test_bf16_product_rounds_the_operands_and_accumulates_in_float32():
     e32, ebf = P.graph_matmul(w[:7, :7], x[..., :4]), P.graph_matmul(w[:7, :7], x[..., :4], "bf16")
     np.testing.assert_array_equal(e32, jnp.einsum("ij,...jo->...io", w[:7, :7], x[..., :4]))
     np.testing.assert_allclose(ebf, e32, rtol=0, atol=0.05 * float(jnp.abs(e32).max()))
+
+
+@pytest.mark.parametrize("precision", P.PRECISIONS)
+def test_weight_products_of_many_axes_are_2d_products_with_the_same_gradients(precision):
+    # A 3-D x is multiplied as its 2-D view, so both gradient products are 2-D (benchmarks/README.md,
+    # "Weight products on 2-D views"): from the 3-D form XLA:CPU copies the cotangent into a transposed layout.
+    x = jax.random.normal(jax.random.key(0), (4, 6, 9))
+    w = jax.random.normal(jax.random.key(1), (9, 5))
+    ct = jax.random.normal(jax.random.key(2), (4, 6, 5))
+    out, vjp = jax.vjp(lambda x, w: P.matmul(x, w, precision), x, w)
+    r = (lambda v: v.astype(jnp.bfloat16).astype(jnp.float32)) if precision == "bf16" else (lambda v: v)  # noqa: E731
+    ref, vjp_ref = jax.vjp(lambda x, w: jnp.einsum("abi,io->abo", x, w), r(x), r(w))
+    assert out.shape == (4, 6, 5)
+    np.testing.assert_allclose(out, ref, rtol=1e-5, atol=1e-5)
+    for got, want in zip(vjp(ct), vjp_ref(r(ct))):
+        assert got.shape == want.shape
+        np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-5)
+    grad = jax.grad(lambda x, w: jnp.sum(P.matmul(x, w, precision) ** 2), argnums=(0, 1))
+    dots = [line for line in jax.jit(grad).lower(x, w).as_text().splitlines() if "dot_general" in line]
+    assert len(dots) == 3  # forward, dx, dw
+    for line in dots:  # every operand and result 2-D
+        assert all(t.count("x") == 2 for t in re.findall(r"tensor<([^>]*)>", line)), line
 
 
 @pytest.mark.parametrize("two_axis_min", [P.NODE_GRAD_TWO_AXIS_MIN, 0])  # both forms of dA
