@@ -52,9 +52,9 @@ class Dense(nn.Module):
         k_init, b_init = initializers(self.rule, fan_in)
         kernel = self.param("kernel", k_init, (fan_in, self.features), jnp.float32)
         bias = self.param("bias", b_init, (self.features,), jnp.float32)
-        if self.precision == "float32":
+        if self.precision == "float32" and x.ndim <= 2:
             return jax.lax.dot_general(x, kernel, (((x.ndim - 1,), (0,)), ((), ()))) + bias
-        return matmul(x, kernel, self.precision) + bias
+        return matmul(x, kernel, self.precision) + bias  # many axes: as a 2-D product (nn/precision.py)
 
 
 class Conv1x1(nn.Module):
