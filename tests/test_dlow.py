@@ -7,6 +7,7 @@ import pytest
 
 from jaxmotion import losses
 from jaxmotion.models import dlow
+from jaxmotion.models.cvae import GRUCVAE
 from jaxmotion.nn.gru import GRU, GRUCell
 
 D, T_HIS, T_PRED, B = 6, 4, 5, 3
@@ -83,25 +84,34 @@ def test_decoder_scan_equals_step_by_step_decoding(cvae):
         np.testing.assert_array_equal(np.asarray(carry.y_prev), np.asarray(y_t))
 
 
-def test_decoder_remat_and_unroll_give_the_same_futures_and_gradients(cvae):
-    """`decoder_remat` (recompute the gates' elementwise work in the backward pass) and `decoder_unroll`
-    (the loop unrolled) change speed, not numbers."""
-    model, params, x, _ = cvae
-    z = jax.random.normal(jax.random.key(4), (B, 8))
+@pytest.mark.parametrize("latent,residual", [("vector", False), ("dct", True), ("dct", False)])  # DLow, MOJO, and one more
+def test_decoder_backward_remat_and_unroll_give_the_same_futures_and_gradients(latent, residual):
+    """The batched backward pass (`decoder_backward="batched"`, nn/decoder_loop.py: each weight's gradient
+    one product after the loop), and with autodiff `decoder_remat` and `decoder_unroll`, change speed,
+    not numbers: the loss and every gradient (parameters and latent) as differentiating the loop gives them."""
+    model = GRUCVAE(dim=D, horizon=T_PRED, nz=8, nh_rnn=16, nh_mlp=(20, 12), latent=latent, residual=residual)
+    x = jnp.asarray(np.random.default_rng(0).normal(size=(B, T_HIS, D)), jnp.float32)
+    params = model.init(jax.random.key(0), x, jnp.zeros((B, T_PRED, D)), jax.random.key(1))
+    z = jax.random.normal(jax.random.key(4), (B,) + model.latent_shape)
     target = jax.random.normal(jax.random.key(5), (B, T_PRED, D))
+    weight = jnp.arange(1.0, T_PRED + 1)[None, :, None]  # every step's cotangent different
 
     def loss_and_grads(m):
-        loss = lambda p, z: jnp.sum((m.apply(p, x, z, method=dlow.DLowCVAE.decode) - target) ** 2)  # noqa: E731
+        loss = lambda p, z: jnp.sum(weight * (m.apply(p, x, z, method=GRUCVAE.decode) - target) ** 2)  # noqa: E731
         return jax.jit(jax.value_and_grad(loss, argnums=(0, 1)))(params, z)
 
-    assert model.decoder_remat and model.decoder_unroll == 1  # the defaults
-    l_remat, g_remat = loss_and_grads(model)
-    for other in (model.clone(decoder_remat=False), model.clone(decoder_unroll=4), model.clone(decoder_unroll=T_PRED)):
+    assert model.decoder_backward == "batched" and model.decoder_remat and model.decoder_unroll == 1  # the defaults
+    l_ref, g_ref = loss_and_grads(model.clone(decoder_backward="autodiff"))
+    for other in (model, model.clone(decoder_backward="autodiff", decoder_remat=False),
+                  model.clone(decoder_backward="autodiff", decoder_unroll=4),
+                  model.clone(decoder_backward="autodiff", decoder_unroll=T_PRED)):
         l_other, g_other = loss_and_grads(other)
-        np.testing.assert_allclose(float(l_remat), float(l_other), rtol=1e-6)
-        for a, b in zip(jax.tree.leaves(g_remat), jax.tree.leaves(g_other), strict=True):
-            np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-6)
-    assert float(jnp.abs(g_remat[1]).max()) > 0  # the latent's gradient (what DLow's Q network trains on) is not trivially zero
+        np.testing.assert_allclose(float(l_ref), float(l_other), rtol=1e-6)
+        for a, b in zip(jax.tree.leaves(g_ref), jax.tree.leaves(g_other), strict=True):
+            np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-5)
+    assert float(jnp.abs(g_ref[1]).max()) > 0  # the latent's gradient (what DLow's Q network trains on) is not trivially zero
+    with pytest.raises(ValueError, match="decoder_backward must be one of"):
+        model.clone(decoder_backward="manual").apply(params, x, z, method=GRUCVAE.decode)
 
 
 @pytest.mark.slow

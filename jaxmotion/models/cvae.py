@@ -27,6 +27,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
 from jaxmotion.dct import dct, idct
+from jaxmotion.nn.decoder_loop import decoder_loop
 from jaxmotion.nn.gru import GRU, GRUCell, gru_update
 from jaxmotion.nn.linear import Dense
 from jaxmotion.nn.mlp import MLP
@@ -45,6 +46,9 @@ def reparameterise(mu: Float[ArrayLike, "..."], logvar: Float[ArrayLike, "..."],
 def vmap_k(decode: Callable[[jax.Array], jax.Array], z: Float[ArrayLike, "b k ..."]) -> Float[Array, "b k ..."]:
     """Returns `decode` applied to each of the K latents `z[:, k]`, stacked on axis 1 (one `jax.vmap`, no loop)."""
     return jnp.swapaxes(jax.vmap(decode, in_axes=1)(z), 0, 1)
+
+
+DECODER_BACKWARDS = ("batched", "autodiff")
 
 
 class DecodeCarry(NamedTuple):
@@ -89,6 +93,12 @@ class GRUCVAE(nn.Module):
     # lax.scan's `unroll` of the decoder loop: same numbers; 4 measured within the run-to-run spread
     # (0.96x-1.07x, `benchmarks/ab.py --ab decoder_unroll`), so the default stays 1.
     decoder_unroll: int = 1
+    # The decoder loop's backward pass: "batched" (default) computes each weight's gradient as one
+    # product over all steps after the loop (nn/decoder_loop.py; float32 only, bf16 falls back);
+    # "autodiff" differentiates the loop (a product and an accumulation per step and weight, with
+    # decoder_remat / decoder_unroll above). Same numbers up to summation order; benchmarks/README.md,
+    # "Batched weight gradients of the decoder loop", has the A/B.
+    decoder_backward: str = "batched"
 
     @property
     def latent_shape(self) -> tuple[int, ...]:
@@ -178,6 +188,17 @@ class GRUCVAE(nn.Module):
         gi_static = matmul(static, w["weight_ih"][:n_static], mm) + w["bias_ih"]  # (b, 3 nh)
         w_dyn = w["weight_ih"][n_static:]
         per_step = inputs.z_t if self.latent == "dct" else None
+        if self.decoder_backward not in DECODER_BACKWARDS:
+            raise ValueError(f"GRUCVAE.decoder_backward must be one of {DECODER_BACKWARDS}, got {self.decoder_backward!r}")
+        if self.decoder_backward == "batched" and mm == "float32" and not self.is_initializing():
+            mlp = self.d_mlp.variables["params"]
+            p = {"w_dyn": w_dyn, "w_hh": w["weight_hh"], "b_hh": w["bias_hh"],
+                 "mlp": [(mlp[f"dense_{i}"]["kernel"], mlp[f"dense_{i}"]["bias"]) for i in range(len(self.nh_mlp))],
+                 "out": (self.d_out.variables["params"]["kernel"], self.d_out.variables["params"]["bias"])}
+            if per_step is None:
+                per_step = jnp.zeros((self.horizon, static.shape[0], 0), gi_static.dtype)
+            ys = decoder_loop(p, gi_static, carry.h, carry.y_prev, per_step, residual=self.residual)
+            return jnp.swapaxes(ys, 0, 1)
 
         def step(mdl, c, z_t):
             dyn = c.y_prev if z_t is None else jnp.concatenate([z_t, c.y_prev], axis=-1)

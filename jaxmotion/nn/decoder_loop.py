@@ -1,0 +1,115 @@
+"""A GRU decoder loop whose backward pass batches every weight gradient into one product per weight.
+
+The loop is DLow's and MOJO's decoder (`models/cvae.py` `GRUCVAE.decode`): per step t,
+
+    gi = gi_static + [z_t, y_{t-1}] @ W_dyn;  gh = h @ W_hh + b_hh;  h' = gru_update(gi, gh, h)
+    a = tanh(... tanh(h' @ K_0 + c_0) ... @ K_n + c_n);  y_t = a @ K_out + c_out (+ y_{t-1} if residual)
+
+Differentiating the `lax.scan` of that step, jax computes each weight's gradient inside the backward
+loop, one small product per step and weight (`x_t^T ct_t`, 64 rows at batch 64) plus an add into an
+accumulator, for every one of the horizon's steps. Here the backward loop only carries the
+activations' cotangents and stacks each product's output cotangent; after the loop each weight's
+gradient is one `(T * b, in)^T (T * b, out)` product over the saved inputs. The same numbers up to
+float32 summation order (`tests/test_dlow.py`); measured in benchmarks/README.md ("Batched weight
+gradients of the decoder loop").
+
+float32 only (bf16 keeps the autodiff loop with its bf16 custom products) and tanh MLPs only.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+
+from jaxmotion.nn.gru import gru_update
+
+
+def _step(p, gi_static, residual, carry, z_t):
+    h, y_prev = carry
+    dyn = jnp.concatenate([z_t, y_prev], axis=-1)
+    gi = gi_static + dyn @ p["w_dyn"]
+    gh = h @ p["w_hh"] + p["b_hh"]
+    h2 = gru_update(gi, gh, h)
+    acts, a = [], h2
+    for k, b in p["mlp"]:
+        a = jnp.tanh(a @ k + b)
+        acts.append(a)
+    y = a @ p["out"][0] + p["out"][1]
+    if residual:
+        y = y + y_prev
+    return (h2, y), (y, (gi, gh, h2, tuple(acts)))  # h and y_{t-1} are the previous step's h2 and y
+
+
+def _rows(x):
+    return x.reshape(-1, x.shape[-1])
+
+
+@functools.partial(jax.custom_vjp, nondiff_argnums=(5,))
+def _loop(p, gi_static, h0, y0, z_seq, residual):
+    return jax.lax.scan(lambda c, z: _step(p, gi_static, residual, c, z), (h0, y0), z_seq)[1][0]
+
+
+def _loop_fwd(p, gi_static, h0, y0, z_seq, residual):
+    _, (ys, saved) = jax.lax.scan(lambda c, z: _step(p, gi_static, residual, c, z), (h0, y0), z_seq)
+    return ys, (p, gi_static, h0, y0, z_seq, ys, saved)
+
+
+def _shift(first, seq):
+    return jnp.concatenate([first[None], seq[:-1]], axis=0)  # the previous step's value at every step
+
+
+def _loop_bwd(residual, res, ct_ys):
+    p, gi_static, h0, y0, z_seq, ys, (gi, gh, h2, acts) = res
+    nz = z_seq.shape[-1]
+    h_prev = _shift(h0, h2)
+    dyn = jnp.concatenate([z_seq, _shift(y0, ys)], axis=-1)
+    w_dyn_t, w_hh_t = p["w_dyn"].T, p["w_hh"].T
+    mlp_t = [k.T for k, _ in p["mlp"]]
+    out_t = p["out"][0].T
+
+    def back(carry, xs):
+        dh, dy_next, dgi_static = carry
+        ct_y, (gi, gh, h, acts) = xs
+        dy = ct_y + dy_next  # y_t's whole cotangent: the loss's, and the next step's input's
+        da = dy @ out_t
+        dpres = [None] * len(acts)
+        for i in reversed(range(len(acts))):
+            dpres[i] = da * (1.0 - acts[i] ** 2)
+            da = dpres[i] @ mlp_t[i]
+        _, vjp = jax.vjp(gru_update, gi, gh, h)
+        dgi, dgh, dh_prev = vjp(dh + da)
+        dh_prev = dh_prev + dgh @ w_hh_t
+        ddyn = dgi @ w_dyn_t
+        dy_prev = ddyn[..., nz:] + dy if residual else ddyn[..., nz:]
+        return (dh_prev, dy_prev, dgi_static + dgi), (ddyn[..., :nz], dy, tuple(dpres), dgi, dgh)
+
+    init = (jnp.zeros_like(h0), jnp.zeros_like(ct_ys[0]), jnp.zeros_like(gi_static))
+    xs = (ct_ys, (gi, gh, h_prev, acts))
+    (dh0, dy0, dgi_static), (dz, dy, dpres, dgi, dgh) = jax.lax.scan(back, init, xs, reverse=True)
+    # Each weight's gradient: one product over all steps and rows.
+    grad = lambda x, d: (_rows(x).T @ _rows(d), jnp.sum(_rows(d), axis=0))  # noqa: E731
+    ins = (h2,) + acts[:-1]
+    dp = {
+        "w_dyn": _rows(dyn).T @ _rows(dgi),
+        "w_hh": _rows(h_prev).T @ _rows(dgh),
+        "b_hh": jnp.sum(_rows(dgh), axis=0),
+        "mlp": [grad(x, d) for x, d in zip(ins, dpres)],
+        "out": grad(acts[-1] if acts else h2, dy),
+    }
+    return dp, dgi_static, dh0, dy0, dz
+
+
+_loop.defvjp(_loop_fwd, _loop_bwd)
+
+
+def decoder_loop(params: dict, gi_static, h0, y0, z_seq, *, residual: bool):
+    """Returns the decoded frames `(T, b, D)`, time-major, of the loop above.
+
+    `params`: `w_dyn (nz_t + D, 3 nh)` (the GRU input weights of `[z_t, y_{t-1}]`), `w_hh (nh, 3 nh)`,
+    `b_hh (3 nh,)`, `mlp` a list of `(kernel, bias)` (tanh after each), `out` `(kernel, bias)`.
+    `gi_static (b, 3 nh)`: the input gates' share that does not change over time, bias included.
+    `z_seq (T, b, nz_t)`: the per-step latent (`nz_t = 0` for none).
+    """
+    return _loop(params, gi_static, h0, y0, z_seq, residual)
