@@ -3,6 +3,7 @@
     flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py                          # --ab precision, ~6 min on the 2-core CPU
     flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab decoder_remat       # ~4 min
     flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab decoder_unroll      # ~4 min
+    flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab decoder_backward    # ~4 min
     flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab gcn_node_major      # ~6 min
     flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab gsps_best_of        # ~3 min
     python benchmarks/ab.py --cases dlow/train_cvae --repeats 3                      # a subset
@@ -12,7 +13,9 @@ jaxmotion/nn/precision.py rounds both operands of every weight product to bfloat
 in float32). `--ab decoder_remat`: the GRU decoders' backward pass stacking every intermediate of
 every step against recomputing the gates' elementwise work (`GRUCVAE.decoder_remat`, DLow and MOJO).
 `--ab decoder_unroll`: the same decoders' `lax.scan` loop rolled against unrolled 4 steps at a time
-(`GRUCVAE.decoder_unroll`).
+(`GRUCVAE.decoder_unroll`). Both shape the differentiated loop, so they run with
+`decoder_backward="autodiff"`. `--ab decoder_backward`: that loop against the batched backward pass,
+each weight's gradient one product after the loop (`GRUCVAE.decoder_backward`, nn/decoder_loop.py).
 `--ab gcn_node_major`: DivSamp's and GSPS's graph-convolution stacks laid out batch-major
 `(..., J, F)` against node-major `(J, ..., F)` inside (`nn/gcn.py` `GCLStack.node_major`).
 `--ab gsps_best_of`: GSPS's best-of-K squared errors (against the truth and every pseudo future) by
@@ -49,6 +52,7 @@ KNOBS = {
     "precision": (("float32", "bf16"), ("float32", "bf16")),
     "decoder_remat": ((False, True), ("stacked", "remat")),
     "decoder_unroll": ((1, 4), ("rolled", "unroll 4")),
+    "decoder_backward": (("autodiff", "batched"), ("autodiff", "batched")),
     "gcn_node_major": ((False, True), ("batch-major", "node-major")),
     "gsps_best_of": (("pairwise", "gram"), ("pairwise", "gram")),
 }
@@ -62,6 +66,7 @@ DEFAULT_CASES = {"precision": (
     "mojo/train_cvae/b64", "mojo/train_sampler/b16/k50", "mojo/sample/b64/k50",
 )}
 DEFAULT_CASES["decoder_unroll"] = DEFAULT_CASES["decoder_remat"]
+DEFAULT_CASES["decoder_backward"] = DEFAULT_CASES["decoder_remat"]
 DEFAULT_CASES["gcn_node_major"] = (  # the cases with graph convolutions (DivSamp's and GSPS's)
     "divsamp/train_cvae/b64", "divsamp/train_sampler/b16/k50", "divsamp/sample/b64/k50",
     "gsps/train_generator", "gsps/sample/b64/k50",
@@ -91,6 +96,8 @@ def main(argv=None):
 
     m = {**machine(), "bf16": has_bf16(cpu_flags())}
     base = Settings()
+    if args.ab in ("decoder_remat", "decoder_unroll"):  # they shape the differentiated loop only
+        base = dataclasses.replace(base, decoder_backward="autodiff")
     cases = [c for c in plan(base) if _matches(c.name.replace("/t60", ""), args.cases) or _matches(c.name, args.cases)]
     if not cases:
         raise SystemExit(f"ab: no case of the plan matches {args.cases}; names look like {plan(base)[0].name}")

@@ -83,15 +83,16 @@ class GRUCVAE(nn.Module):
     # always follow PyTorch's rule (nn/gru.py).
     dense_init: str = "torch"
     precision: str = "float32"  # every weight product's: "float32" or "bf16" (nn/precision.py)
-    # The decoder loop's backward pass keeps each step's matrix products and recomputes the gates'
-    # elementwise work (jax.checkpoint_policies.dots_saveable) instead of stacking every
-    # intermediate of every step (issue 18's "scan residual copies"). Same numbers; DLow's and
+    # With decoder_backward="autodiff" (below), the decoder loop's backward pass keeps each step's
+    # matrix products and recomputes the gates' elementwise work (jax.checkpoint_policies.dots_saveable)
+    # instead of stacking every intermediate of every step (issue 18's "scan residual copies"). Same numbers; DLow's and
     # MOJO's second-stage steps (the gradient through the K = 50 decoders) measured 1.12x faster,
     # the CVAE steps unchanged (`python benchmarks/ab.py --ab decoder_remat`; benchmarks/README.md).
     # The same policy on the encoders' GRU (nn/gru.py) measured slower, so it is not used there.
     decoder_remat: bool = True
-    # lax.scan's `unroll` of the decoder loop: same numbers; 4 measured within the run-to-run spread
-    # (0.96x-1.07x, `benchmarks/ab.py --ab decoder_unroll`), so the default stays 1.
+    # lax.scan's `unroll` of the differentiated decoder loop (decoder_backward="autodiff"): same
+    # numbers; 4 measured within the run-to-run spread (0.96x-1.07x, `benchmarks/ab.py --ab
+    # decoder_unroll`), so the default stays 1.
     decoder_unroll: int = 1
     # The decoder loop's backward pass: "batched" (default) computes each weight's gradient as one
     # product over all steps after the loop (nn/decoder_loop.py; float32 only, bf16 falls back);
