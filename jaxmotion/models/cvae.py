@@ -112,6 +112,8 @@ class GRUCVAE(nn.Module):
     def setup(self):
         if self.latent not in LATENT_KINDS:
             raise ValueError(f"{type(self).__name__}.latent must be one of {LATENT_KINDS}, got {self.latent!r}")
+        if self.decoder_backward not in DECODER_BACKWARDS:
+            raise ValueError(f"{type(self).__name__}.decoder_backward must be one of {DECODER_BACKWARDS}, got {self.decoder_backward!r}")
         init, mm = self.dense_init, self.precision
         self.x_rnn = GRU(self.nh_rnn, mm)
         self.e_rnn = GRU(self.nh_rnn, mm)
@@ -189,8 +191,6 @@ class GRUCVAE(nn.Module):
         gi_static = matmul(static, w["weight_ih"][:n_static], mm) + w["bias_ih"]  # (b, 3 nh)
         w_dyn = w["weight_ih"][n_static:]
         per_step = inputs.z_t if self.latent == "dct" else None
-        if self.decoder_backward not in DECODER_BACKWARDS:
-            raise ValueError(f"GRUCVAE.decoder_backward must be one of {DECODER_BACKWARDS}, got {self.decoder_backward!r}")
         if self.decoder_backward == "batched" and mm == "float32" and not self.is_initializing():
             mlp = self.d_mlp.variables["params"]
             p = {"w_dyn": w_dyn, "w_hh": w["weight_hh"], "b_hh": w["bias_hh"],

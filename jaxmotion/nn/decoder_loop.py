@@ -46,14 +46,14 @@ def _rows(x):
     return x.reshape(-1, x.shape[-1])
 
 
-@functools.partial(jax.custom_vjp, nondiff_argnums=(5,))
-def _loop(p, gi_static, h0, y0, z_seq, residual):
-    return jax.lax.scan(lambda c, z: _step(p, gi_static, residual, c, z), (h0, y0), z_seq)[1][0]
-
-
 def _loop_fwd(p, gi_static, h0, y0, z_seq, residual):
     _, (ys, saved) = jax.lax.scan(lambda c, z: _step(p, gi_static, residual, c, z), (h0, y0), z_seq)
     return ys, (p, gi_static, h0, y0, z_seq, ys, saved)
+
+
+@functools.partial(jax.custom_vjp, nondiff_argnums=(5,))
+def _loop(p, gi_static, h0, y0, z_seq, residual):
+    return _loop_fwd(p, gi_static, h0, y0, z_seq, residual)[0]  # the unused residuals are dropped by jit
 
 
 def _shift(first, seq):
@@ -91,10 +91,11 @@ def _loop_bwd(residual, res, ct_ys):
     # Each weight's gradient: one product over all steps and rows.
     grad = lambda x, d: (_rows(x).T @ _rows(d), jnp.sum(_rows(d), axis=0))  # noqa: E731
     ins = (h2,) + acts[:-1]
+    w_hh, b_hh = grad(h_prev, dgh)
     dp = {
         "w_dyn": _rows(dyn).T @ _rows(dgi),
-        "w_hh": _rows(h_prev).T @ _rows(dgh),
-        "b_hh": jnp.sum(_rows(dgh), axis=0),
+        "w_hh": w_hh,
+        "b_hh": b_hh,
         "mlp": [grad(x, d) for x, d in zip(ins, dpres)],
         "out": grad(acts[-1] if acts else h2, dy),
     }
