@@ -53,6 +53,7 @@ class Settings:
     decoder_remat: bool = True  # GRUCVAE.decoder_remat of DLow's and MOJO's CVAEs (benchmarks/ab.py --ab decoder_remat)
     decoder_unroll: int = 1  # GRUCVAE.decoder_unroll of the same (benchmarks/ab.py --ab decoder_unroll)
     decoder_backward: str = "batched"  # GRUCVAE.decoder_backward of the same (benchmarks/ab.py --ab decoder_backward)
+    encoder_backward: str = "batched"  # GRUCVAE.encoder_backward of the same (benchmarks/ab.py --ab encoder_backward)
     gcn_node_major: bool = True  # the GCL stacks' layout in DivSamp and GSPS (benchmarks/ab.py --ab gcn_node_major)
     gsps_best_of: str = "gram"  # how GSPS's loss forms its best-of-K errors (generator_loss best_of; ab.py --ab gsps_best_of)
 
@@ -164,15 +165,25 @@ def measure(run: Callable[[], object], warmup: int, repeats: int, probe: Callabl
     another, and a 1024^3 product doubled its time for stretches of 10-50 calls within one process
     (benchmarks/README.md, "Slow stretches of the machine"). With `slow_factor` > 1, a call whose
     probe took more than `slow_factor` times the fastest is not counted, and calls continue until
-    `repeats` are counted or `max_calls_factor * repeats` were made. Short calls are not probed: the
-    probe would evict their data from the caches.
+    `repeats` are counted or `max_calls_factor * repeats` were made. Short calls are not probed one by
+    one (the probe would evict their data from the caches and take longer than the call): the case is
+    bracketed instead, one probe before its warm-up calls and one after its timed calls, and the record
+    holds `bracket_probe_ms` (the two) and the same `probe_ms_min` / `probe_ms_median`, so a short
+    case's figures also say how fast the machine ran around them. No call is left out by the gate.
     """
+    before = probe_time(probe) if probe is not None else None
     last = 0.0
     for _ in range(warmup):
         last = _timed(run)
     if probe is None or last < probe_min_call_s:
-        return summarise([_timed(run) for _ in range(repeats)])
-    best = min(probe_time(probe) for _ in range(3))
+        out = summarise([_timed(run) for _ in range(repeats)])
+        if probe is not None:
+            after = probe_time(probe)
+            out.update(bracket_probe_ms=[before * 1e3, after * 1e3],
+                       probe_ms_min=min([before, after] + ([ref_s] if ref_s else [])) * 1e3,
+                       probe_ms_median=statistics.median([before, after]) * 1e3)
+        return out
+    best = min([before] + [probe_time(probe) for _ in range(2)])
     best = min(best, ref_s) if ref_s else best
     calls: list[tuple[float, float]] = []
     while True:

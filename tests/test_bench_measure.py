@@ -54,14 +54,26 @@ def test_a_machine_slow_throughout_stops_after_max_calls_and_keeps_the_best_prob
     assert rec["median_s"] == pytest.approx(0.09)
 
 
-def test_short_calls_are_not_probed(monkeypatch):
+def test_short_calls_are_bracketed_by_probes_not_probed_one_by_one(monkeypatch):
     clock = FakeClock(monkeypatch)
-    run = clock.scripted([0.001] * 5)
+    events = []
+    timed = clock.scripted([0.001] * 5)
+    probe_t = clock.scripted([0.004, 0.008], twice=True)  # the machine slowed down during the case
+
+    def run():
+        events.append("run")
+        timed()
 
     def probe():
-        raise AssertionError("a call under probe_min_call_s must not be probed")
-    rec = harness.measure(run, warmup=2, repeats=3, probe=probe)
-    assert rec["n"] == 3 and "calls" not in rec
+        events.append("probe")
+        probe_t()
+    rec = harness.measure(run, warmup=2, repeats=3, probe=probe, ref_s=0.002)
+    # One probe (two calls: warm-up and timed) before the warm-up calls, one after the timed calls, none between.
+    assert events == ["probe"] * 2 + ["run"] * 5 + ["probe"] * 2
+    assert rec["n"] == 3 and "calls" not in rec and rec["median_s"] == pytest.approx(0.001)
+    assert rec["bracket_probe_ms"] == pytest.approx([4.0, 8.0])
+    assert rec["probe_ms_median"] == pytest.approx(6.0) and rec["probe_ms_min"] == pytest.approx(2.0)
+    assert "probe_ms_min" not in harness.measure(clock.scripted([0.001] * 5), warmup=2, repeats=3)
 
 
 def test_a_case_run_entirely_in_a_slow_stretch_is_judged_against_the_workers_reference(monkeypatch):
@@ -81,3 +93,25 @@ def test_by_default_every_call_counts_and_the_probe_is_recorded(monkeypatch):
     rec = harness.measure(run, warmup=2, repeats=3, probe=probe)
     assert (rec["calls"], rec["slow_calls"], rec["n"]) == (3, 0, 3) and rec["max_s"] == pytest.approx(0.12)
     assert rec["probe_ms_min"] == pytest.approx(10.0) and rec["probe_ms_median"] == pytest.approx(11.0)
+
+
+def test_a_missed_case_is_machine_limited_only_when_it_ran_near_the_probes_rate_in_a_slow_stretch():
+    from benchmarks import run
+
+    s = harness.Settings()
+    probe_flop = 2 * s.probe_n ** 3
+
+    def row(ratio, case_ms, probe_ms):
+        jax = {"flops": 2.51e9, "median_s": case_ms * 1e-3, "probe_ms_median": probe_ms}
+        return {"kind": "sample", "k": s.k, "ratio_torch_eager": ratio, "jax": jax}
+    slow_probe_ms = probe_flop / 232e9 * 1e3  # the probe at 232 GFLOP/s: a slow stretch (peak 467)
+    assert run.probe_gflops(row(1.8, 11.0, slow_probe_ms), s) == pytest.approx(232.0)
+    # 2.51 GFLOP in 11 ms = 228 GFLOP/s: 98% of the probe's rate then, 49% of the peak.
+    assert run._target(row(1.8, 11.0, slow_probe_ms), s, 467.0).startswith("machine-limited in a slow stretch (98% of the 232")
+    # The same case with the machine at full speed around it (probe at the peak) is a miss.
+    assert run._target(row(1.8, 11.0, probe_flop / 460e9 * 1e3), s, 467.0) == "**missed** (< 2.0x)"
+    # Slow machine but the case far below even its rate then: a miss; and a met target stays met.
+    assert run._target(row(1.8, 30.0, slow_probe_ms), s, 467.0) == "**missed** (< 2.0x)"
+    assert run._target(row(2.1, 11.0, slow_probe_ms), s, 467.0) == "met (>= 2.0x)"
+    # No probe recorded (runs before the bracketing probes): judged on the peak alone.
+    assert run._target(row(1.8, 11.0, None), s, 467.0) == "**missed** (< 2.0x)"
