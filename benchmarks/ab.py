@@ -4,7 +4,6 @@
     flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab decoder_remat       # ~4 min
     flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab decoder_unroll      # ~4 min
     flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab decoder_backward    # ~4 min
-    flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab encoder_backward    # ~2 min
     flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab gcn_node_major      # ~6 min
     flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab gsps_best_of        # ~3 min
     python benchmarks/ab.py --cases dlow/train_cvae --repeats 3                      # a subset
@@ -17,8 +16,6 @@ every step against recomputing the gates' elementwise work (`GRUCVAE.decoder_rem
 (`GRUCVAE.decoder_unroll`). Both shape the differentiated loop, so they run with
 `decoder_backward="autodiff"`. `--ab decoder_backward`: that loop against the batched backward pass,
 each weight's gradient one product after the loop (`GRUCVAE.decoder_backward`, nn/decoder_loop.py).
-`--ab encoder_backward`: the same for the encoders' GRUs, `W_hh`'s gradient per step against one
-product after the reverse loop (`GRUCVAE.encoder_backward`, nn/gru.py `gru_recurrence`).
 `--ab gcn_node_major`: DivSamp's and GSPS's graph-convolution stacks laid out batch-major
 `(..., J, F)` against node-major `(J, ..., F)` inside (`nn/gcn.py` `GCLStack.node_major`).
 `--ab gsps_best_of`: GSPS's best-of-K squared errors (against the truth and every pseudo future) by
@@ -56,7 +53,6 @@ KNOBS = {
     "decoder_remat": ((False, True), ("stacked", "remat")),
     "decoder_unroll": ((1, 4), ("rolled", "unroll 4")),
     "decoder_backward": (("autodiff", "batched"), ("autodiff", "batched")),
-    "encoder_backward": (("autodiff", "batched"), ("autodiff", "batched")),
     "gcn_node_major": ((False, True), ("batch-major", "node-major")),
     "gsps_best_of": (("pairwise", "gram"), ("pairwise", "gram")),
 }
@@ -71,7 +67,6 @@ DEFAULT_CASES = {"precision": (
 )}
 DEFAULT_CASES["decoder_unroll"] = DEFAULT_CASES["decoder_remat"]
 DEFAULT_CASES["decoder_backward"] = DEFAULT_CASES["decoder_remat"]
-DEFAULT_CASES["encoder_backward"] = ("dlow/train_cvae/b64", "mojo/train_cvae/b64")  # the steps that train the encoders
 DEFAULT_CASES["gcn_node_major"] = (  # the cases with graph convolutions (DivSamp's and GSPS's)
     "divsamp/train_cvae/b64", "divsamp/train_sampler/b16/k50", "divsamp/sample/b64/k50",
     "gsps/train_generator", "gsps/sample/b64/k50",

@@ -53,7 +53,6 @@ class Settings:
     decoder_remat: bool = True  # GRUCVAE.decoder_remat of DLow's and MOJO's CVAEs (benchmarks/ab.py --ab decoder_remat)
     decoder_unroll: int = 1  # GRUCVAE.decoder_unroll of the same (benchmarks/ab.py --ab decoder_unroll)
     decoder_backward: str = "batched"  # GRUCVAE.decoder_backward of the same (benchmarks/ab.py --ab decoder_backward)
-    encoder_backward: str = "batched"  # GRUCVAE.encoder_backward of the same (benchmarks/ab.py --ab encoder_backward)
     gcn_node_major: bool = True  # the GCL stacks' layout in DivSamp and GSPS (benchmarks/ab.py --ab gcn_node_major)
     gsps_best_of: str = "gram"  # how GSPS's loss forms its best-of-K errors (generator_loss best_of; ab.py --ab gsps_best_of)
 

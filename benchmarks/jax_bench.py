@@ -78,8 +78,7 @@ class Builders:
     def dlow(self, c: Case):
         s = self.s
         cvae = dlow.DLowCVAE(dim=s.dim, horizon=c.t_pred, precision=s.precision, decoder_remat=s.decoder_remat,
-                              decoder_unroll=s.decoder_unroll, decoder_backward=s.decoder_backward,
-                              encoder_backward=s.encoder_backward)
+                              decoder_unroll=s.decoder_unroll, decoder_backward=s.decoder_backward)
         p = cvae.init(jax.random.key(0), self.data(1, s.t_his), self.data(1, c.t_pred), jax.random.key(1))
         if c.kind == "train_cvae":
             tx = optax.adam(1e-3)
@@ -105,8 +104,7 @@ class Builders:
         cfg = mojo.MojoConfig()
         model = mojo.cvae_model(cfg, s.dim, c.t_pred, s.precision).clone(decoder_remat=s.decoder_remat,
                                                                                  decoder_unroll=s.decoder_unroll,
-                                                                                 decoder_backward=s.decoder_backward,
-                                                                                 encoder_backward=s.encoder_backward)
+                                                                                 decoder_backward=s.decoder_backward)
         p = model.init(jax.random.key(0), self.data(1, s.t_his), self.data(1, c.t_pred), jax.random.key(1))
         if c.kind == "train_cvae":
             tx = optax.adam(cfg.lr)

@@ -50,31 +50,6 @@ def test_scanned_gru_equals_a_python_loop_of_cells():
     np.testing.assert_array_equal(np.asarray(gru.apply(p, x, last_only=True)), np.asarray(hs[:, -1]))
 
 
-
-@pytest.mark.parametrize("last_only", [False, True])
-def test_gru_batched_backward_gives_the_autodiff_loops_states_and_gradients(last_only):
-    rng = np.random.default_rng(3)
-    x = jnp.asarray(rng.normal(size=(4, 9, 6)), jnp.float32)
-    h0 = jnp.asarray(rng.normal(size=(4, 5)), jnp.float32)
-    ct = jnp.asarray(rng.normal(size=(4, 5) if last_only else (4, 9, 5)), jnp.float32)  # a loss weighting every output
-    p = GRU(5).init(jax.random.key(0), x)
-
-    def loss(backward, p, x, h0):
-        return jnp.sum(ct * GRU(5, backward=backward).apply(p, x, h0, last_only=last_only) ** 2)
-
-    for backward in ("autodiff", "batched"):
-        hs = GRU(5, backward=backward).apply(p, x, h0, last_only=last_only)
-        assert hs.shape == ct.shape
-    ref = jax.grad(lambda *a: loss("autodiff", *a), argnums=(0, 1, 2))(p, x, h0)
-    got = jax.jit(jax.grad(lambda *a: loss("batched", *a), argnums=(0, 1, 2)))(p, x, h0)
-    np.testing.assert_allclose(loss("batched", p, x, h0), loss("autodiff", p, x, h0), rtol=1e-6)
-    assert jax.tree_util.tree_structure(got) == jax.tree_util.tree_structure(ref)
-    for r, g in zip(jax.tree_util.tree_leaves(ref), jax.tree_util.tree_leaves(got)):
-        np.testing.assert_allclose(np.asarray(g), np.asarray(r), rtol=1e-5, atol=1e-5)
-    with pytest.raises(ValueError, match="GRU.backward"):
-        GRU(5, backward="fast").apply(p, x)
-
-
 def test_cvae_forward_and_gradients_equal_the_unshared_past_code(cvae):
     """`__call__` encodes the past once for the encoder and the decoder: the same numbers as encoding it twice."""
     model, params, x, y = cvae
@@ -138,26 +113,6 @@ def test_decoder_backward_remat_and_unroll_give_the_same_futures_and_gradients(l
     with pytest.raises(ValueError, match="decoder_backward must be one of"):
         model.clone(decoder_backward="manual").apply(params, x, z, method=GRUCVAE.decode)
 
-
-
-def test_cvae_encoder_backward_changes_no_loss_or_gradient(cvae):
-    """`encoder_backward="batched"` (the encoders' GRUs' W_hh gradient as one product, nn/gru.py) gives the
-    whole CVAE's reconstruction, posterior and every parameter gradient as differentiating the scans does."""
-    model, params, x, y = cvae
-
-    def loss(m, p):
-        y_rec, mu, logvar = m.apply(p, x, y, jax.random.key(2))
-        return jnp.sum((y_rec - y) ** 2) + jnp.sum(mu ** 2) + jnp.sum(jnp.exp(logvar))
-
-    assert model.encoder_backward == "batched"
-    l_ref, g_ref = jax.jit(jax.value_and_grad(lambda p: loss(model.clone(encoder_backward="autodiff"), p)))(params)
-    l_got, g_got = jax.jit(jax.value_and_grad(lambda p: loss(model, p)))(params)
-    np.testing.assert_allclose(float(l_got), float(l_ref), rtol=1e-6)
-    for a, b in zip(jax.tree.leaves(g_ref), jax.tree.leaves(g_got), strict=True):
-        np.testing.assert_allclose(np.asarray(b), np.asarray(a), rtol=1e-5, atol=1e-5)
-    assert float(jnp.abs(g_got["params"]["e_rnn"]["cell"]["weight_hh"]).max()) > 0
-    with pytest.raises(ValueError, match="encoder_backward must be one of"):
-        model.clone(encoder_backward="manual").apply(params, x, y)
 
 @pytest.mark.slow
 def test_sampling_k_by_vmap_equals_loop_and_jit_equals_eager(cvae):

@@ -100,10 +100,6 @@ class GRUCVAE(nn.Module):
     # decoder_remat / decoder_unroll above). Same numbers up to summation order; benchmarks/README.md,
     # "Batched weight gradients of the decoder loop", has the A/B.
     decoder_backward: str = "batched"
-    # The encoders' GRUs' backward pass (nn/gru.py GRU.backward): "batched" (default) computes W_hh's
-    # gradient as one product after the reverse loop, "autodiff" differentiates the scan. Same numbers
-    # up to summation order; benchmarks/README.md, "Batched weight gradients of the encoders' GRUs".
-    encoder_backward: str = "batched"
 
     @property
     def latent_shape(self) -> tuple[int, ...]:
@@ -118,11 +114,9 @@ class GRUCVAE(nn.Module):
             raise ValueError(f"{type(self).__name__}.latent must be one of {LATENT_KINDS}, got {self.latent!r}")
         if self.decoder_backward not in DECODER_BACKWARDS:
             raise ValueError(f"{type(self).__name__}.decoder_backward must be one of {DECODER_BACKWARDS}, got {self.decoder_backward!r}")
-        if self.encoder_backward not in DECODER_BACKWARDS:
-            raise ValueError(f"{type(self).__name__}.encoder_backward must be one of {DECODER_BACKWARDS}, got {self.encoder_backward!r}")
         init, mm = self.dense_init, self.precision
-        self.x_rnn = GRU(self.nh_rnn, mm, backward=self.encoder_backward)
-        self.e_rnn = GRU(self.nh_rnn, mm, backward=self.encoder_backward)
+        self.x_rnn = GRU(self.nh_rnn, mm)
+        self.e_rnn = GRU(self.nh_rnn, mm)
         self.e_mlp = MLP(self.nh_mlp, dense_init=init, precision=mm)
         self.e_mu = Dense(self.nz, rule=init, precision=mm)
         self.e_logvar = Dense(self.nz, rule=init, precision=mm)

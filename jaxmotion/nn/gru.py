@@ -58,78 +58,18 @@ class GRUCell(nn.Module):
         return gru_update(matmul(x, w_ih, mm) + b_ih, matmul(h, w_hh, mm) + b_hh, h)
 
 
-def _shift(first, seq):
-    return jnp.concatenate([first[None], seq[:-1]], axis=0)  # the previous step's value at every step
-
-
-def _recurrence_fwd(w_hh, b_hh, gi, h0):
-    def step(h, gi_t):
-        gh = h @ w_hh + b_hh
-        h2 = gru_update(gi_t, gh, h)
-        return h2, (h2, gh)
-
-    _, (hs, gh) = jax.lax.scan(step, h0, gi)
-    return hs, (w_hh, gi, h0, hs, gh)
-
-
-@jax.custom_vjp
-def _recurrence(w_hh, b_hh, gi, h0):
-    return _recurrence_fwd(w_hh, b_hh, gi, h0)[0]  # the unused residuals are dropped by jit
-
-
-def _recurrence_bwd(res, ct_hs):
-    w_hh, gi, h0, hs, gh = res
-    h_prev = _shift(h0, hs)
-    w_hh_t = w_hh.T
-
-    def back(dh, xs):
-        ct_h, gi_t, gh_t, h_t = xs
-        _, vjp = jax.vjp(gru_update, gi_t, gh_t, h_t)
-        dgi, dgh, dh_prev = vjp(dh + ct_h)
-        return dh_prev + dgh @ w_hh_t, (dgi, dgh)
-
-    dh0, (dgi, dgh) = jax.lax.scan(back, jnp.zeros_like(h0), (ct_hs, gi, gh, h_prev), reverse=True)
-    rows = lambda x: x.reshape(-1, x.shape[-1])  # noqa: E731
-    return rows(h_prev).T @ rows(dgh), jnp.sum(rows(dgh), axis=0), dgi, dh0
-
-
-_recurrence.defvjp(_recurrence_fwd, _recurrence_bwd)
-
-
-def gru_recurrence(
-    w_hh: Float[ArrayLike, "h g"], b_hh: Float[ArrayLike, " g"], gi: Float[ArrayLike, "t b g"], h0: Float[ArrayLike, "b h"]
-) -> Float[Array, "t b h"]:
-    """Returns every hidden state `(T, b, h)`, time-major, of the GRU recurrence on precomputed input gates `gi`.
-
-    The same numbers as differentiating `lax.scan` of `gru_update(gi_t, h @ w_hh + b_hh, h)`, up to
-    float32 summation order, but its backward pass computes `W_hh`'s gradient as one
-    `(T * b, h)^T (T * b, 3 h)` product after the reverse loop instead of a small product and an
-    accumulation per step: the reverse loop carries only `h`'s cotangent and stacks the hidden
-    gates' cotangents (the same construction as nn/decoder_loop.py). float32 products.
-    """
-    return _recurrence(w_hh, b_hh, gi, h0)
-
-
 class GRU(nn.Module):
     """Returns all hidden states `(batch, time, features)` of a GRU run by `lax.scan` over time (parameters `cell/...`).
 
     With `last_only=True` it returns the last state `(batch, features)` alone: the loop then stacks
-    no per-step outputs, and its backward pass adds no (zero) per-step cotangents (with
-    `backward="autodiff"`; the batched backward stacks the states anyway, as its residuals).
+    no per-step outputs, and its backward pass adds no (zero) per-step cotangents.
     """
 
     features: int
     precision: str = "float32"  # as GRUCell.precision
     # lax.scan's `unroll` (>= the sequence length: fully unrolled); the same numbers, faster or not. An
     # int, not True: a module is a jit static argument, and True == 1 would share 1's compiled code.
-    # Used by backward="autodiff" (and by bf16, which always takes that path).
     unroll: int = 1
-    # The backward pass: "batched" (default) computes W_hh's gradient as one product over all steps
-    # after the reverse loop (`gru_recurrence`; float32 only: bf16 falls back to "autodiff"), which
-    # differentiates the `lax.scan` (a product and an accumulation per step). Same numbers up to
-    # float32 summation order; measured in benchmarks/README.md ("Batched weight gradients of the
-    # encoders' GRUs").
-    backward: str = "batched"
 
     @nn.compact
     def __call__(
@@ -144,12 +84,7 @@ class GRU(nn.Module):
         # The input half of every gate does not depend on h: one (b * t, i) x (i, 3h) product for
         # all steps (as cuDNN / oneDNN GRUs do) leaves only h @ W_hh inside the sequential loop.
         mm = self.precision
-        if self.backward not in ("batched", "autodiff"):
-            raise ValueError(f"GRU.backward must be 'batched' or 'autodiff', got {self.backward!r}")
         gi = jnp.swapaxes(matmul(x, p["weight_ih"], mm) + p["bias_ih"], 0, 1)
-        if self.backward == "batched" and mm == "float32":
-            hs = gru_recurrence(p["weight_hh"], p["bias_hh"], gi, h0)
-            return hs[-1] if last_only else jnp.swapaxes(hs, 0, 1)
 
         def step(h, gi_t):
             h = gru_update(gi_t, matmul(h, p["weight_hh"], mm) + p["bias_hh"], h)
