@@ -57,6 +57,12 @@ class Settings:
     gsps_best_of: str = "gram"  # how GSPS's loss forms its best-of-K errors (generator_loss best_of; ab.py --ab gsps_best_of)
 
     @classmethod
+    def from_record(cls, d: dict) -> "Settings":
+        """Returns the settings a results file recorded; a knob since removed (a field not here) is ignored."""
+        known = {f.name for f in dataclasses.fields(cls)}
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items() if k in known})
+
+    @classmethod
     def quick(cls, **kw) -> "Settings":
         """Returns tiny settings for a smoke test (seconds, not minutes; numbers not meaningful)."""
         base = dict(train_batch=8, sampler_batch=2, k=5, sample_batches=(1, 4), k_sweep=(1, 20), t_pred_sweep=(10, 30),
