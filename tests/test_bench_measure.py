@@ -109,3 +109,9 @@ def test_the_probe_rate_around_a_case_is_recorded_but_does_not_judge_its_target(
     assert run._target(row, s, 467.0) == "**missed** (< 2.0x)"
     assert run._target(row, s, 300.0).startswith("machine-limited (> 60% of peak; PyTorch trails by 1.80x)")
     assert run.probe_gflops({"jax": {"median_s": 1.0}}, s) is None
+
+
+def test_settings_from_a_results_file_ignore_knobs_since_removed():
+    rec = {"k": 50, "sample_batches": [1, 64], "encoder_backward": "batched"}  # a knob of an older commit
+    s = harness.Settings.from_record(rec)
+    assert s.k == 50 and s.sample_batches == (1, 64) and not hasattr(s, "encoder_backward")
