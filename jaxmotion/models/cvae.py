@@ -27,8 +27,8 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
 from jaxmotion.dct import dct, idct
-from jaxmotion.nn.decoder_loop import decoder_loop
-from jaxmotion.nn.gru import GRU, GRUCell, gru_update
+from jaxmotion.nn.decoder_loop import decoder_loop, decoder_scan
+from jaxmotion.nn.gru import GRU, GRUCell
 from jaxmotion.nn.linear import Dense
 from jaxmotion.nn.mlp import MLP
 from jaxmotion.nn.precision import matmul
@@ -190,31 +190,17 @@ class GRUCVAE(nn.Module):
         mm = self.precision
         gi_static = matmul(static, w["weight_ih"][:n_static], mm) + w["bias_ih"]  # (b, 3 nh)
         w_dyn = w["weight_ih"][n_static:]
-        per_step = inputs.z_t if self.latent == "dct" else None
-        if self.decoder_backward == "batched" and mm == "float32" and not self.is_initializing():
-            mlp = self.d_mlp.variables["params"]
-            p = {"w_dyn": w_dyn, "w_hh": w["weight_hh"], "b_hh": w["bias_hh"],
-                 "mlp": [(mlp[f"dense_{i}"]["kernel"], mlp[f"dense_{i}"]["bias"]) for i in range(len(self.nh_mlp))],
-                 "out": (self.d_out.variables["params"]["kernel"], self.d_out.variables["params"]["bias"])}
-            if per_step is None:
-                per_step = jnp.zeros((self.horizon, static.shape[0], 0), gi_static.dtype)
+        mlp, out = self.d_mlp.variables["params"], self.d_out.variables["params"]
+        p = {"w_dyn": w_dyn, "w_hh": w["weight_hh"], "b_hh": w["bias_hh"],
+             "mlp": [(mlp[f"dense_{i}"]["kernel"], mlp[f"dense_{i}"]["bias"]) for i in range(len(self.nh_mlp))],
+             "out": (out["kernel"], out["bias"])}
+        per_step = inputs.z_t if self.latent == "dct" else jnp.zeros((self.horizon, static.shape[0], 0), gi_static.dtype)
+        if self.decoder_backward == "batched" and mm == "float32":
             ys = decoder_loop(p, gi_static, carry.h, carry.y_prev, per_step, residual=self.residual)
-            return jnp.swapaxes(ys, 0, 1)
-
-        def step(mdl, c, z_t):
-            dyn = c.y_prev if z_t is None else jnp.concatenate([z_t, c.y_prev], axis=-1)
-            h = gru_update(gi_static + matmul(dyn, w_dyn, mm), matmul(c.h, w["weight_hh"], mm) + w["bias_hh"], c.h)
-            y = mdl.d_out(mdl.d_mlp(h))
-            if self.residual:
-                y = y + c.y_prev
-            return DecodeCarry(h, y), y
-
-        if self.decoder_remat:
-            step = nn.remat(step, policy=jax.checkpoint_policies.dots_saveable, prevent_cse=False)
-        scan = nn.scan(step, variable_broadcast="params", split_rngs={"params": False}, length=self.horizon, out_axes=1,
-                       unroll=self.decoder_unroll)
-        _, ys = scan(self, carry, per_step)
-        return ys
+        else:
+            ys = decoder_scan(p, gi_static, carry.h, carry.y_prev, per_step, residual=self.residual, precision=mm,
+                              remat=self.decoder_remat, unroll=self.decoder_unroll)
+        return jnp.swapaxes(ys, 0, 1)
 
     def __call__(self, x, y, key: jax.Array | None = None):
         """Returns `(y_rec, mu, logvar)`; samples z by reparameterisation when `key` is given, else z = mu.

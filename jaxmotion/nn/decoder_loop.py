@@ -13,7 +13,8 @@ gradient is one `(T * b, in)^T (T * b, out)` product over the saved inputs. The 
 float32 summation order (`tests/test_dlow.py`); measured in benchmarks/README.md ("Batched weight
 gradients of the decoder loop").
 
-float32 only (bf16 keeps the autodiff loop with its bf16 custom products) and tanh MLPs only.
+float32 only (bf16 takes `decoder_scan`, jax differentiating the same `decoder_step` with its bf16 custom
+products) and tanh MLPs only.
 """
 
 from __future__ import annotations
@@ -24,19 +25,25 @@ import jax
 import jax.numpy as jnp
 
 from jaxmotion.nn.gru import gru_update
+from jaxmotion.nn.precision import matmul
 
 
-def _step(p, gi_static, residual, carry, z_t):
+def decoder_step(p, gi_static, residual, carry, z_t, precision="float32"):
+    """Returns `((h', y_t), (y_t, saved))`: one step of the loop above (`saved`: what the batched backward pass reuses).
+
+    The one definition of the step both backward passes use: `decoder_loop` inverts it by hand,
+    `decoder_scan` lets jax differentiate it. `precision`: the products' (nn/precision.py).
+    """
     h, y_prev = carry
     dyn = jnp.concatenate([z_t, y_prev], axis=-1)
-    gi = gi_static + dyn @ p["w_dyn"]
-    gh = h @ p["w_hh"] + p["b_hh"]
+    gi = gi_static + matmul(dyn, p["w_dyn"], precision)
+    gh = matmul(h, p["w_hh"], precision) + p["b_hh"]
     h2 = gru_update(gi, gh, h)
     acts, a = [], h2
     for k, b in p["mlp"]:
-        a = jnp.tanh(a @ k + b)
+        a = jnp.tanh(matmul(a, k, precision) + b)
         acts.append(a)
-    y = a @ p["out"][0] + p["out"][1]
+    y = matmul(a, p["out"][0], precision) + p["out"][1]
     if residual:
         y = y + y_prev
     return (h2, y), (y, (gi, gh, h2, tuple(acts)))  # h and y_{t-1} are the previous step's h2 and y
@@ -47,7 +54,7 @@ def _rows(x):
 
 
 def _loop_fwd(p, gi_static, h0, y0, z_seq, residual):
-    _, (ys, saved) = jax.lax.scan(lambda c, z: _step(p, gi_static, residual, c, z), (h0, y0), z_seq)
+    _, (ys, saved) = jax.lax.scan(lambda c, z: decoder_step(p, gi_static, residual, c, z), (h0, y0), z_seq)
     return ys, (p, gi_static, h0, y0, z_seq, ys, saved)
 
 
@@ -114,3 +121,19 @@ def decoder_loop(params: dict, gi_static, h0, y0, z_seq, *, residual: bool):
     `z_seq (T, b, nz_t)`: the per-step latent (`nz_t = 0` for none).
     """
     return _loop(params, gi_static, h0, y0, z_seq, residual)
+
+
+def decoder_scan(params: dict, gi_static, h0, y0, z_seq, *, residual: bool, precision: str = "float32",
+                 remat: bool = True, unroll: int = 1):
+    """Returns the same frames as `decoder_loop`, with jax differentiating the `lax.scan` of `decoder_step`.
+
+    Any precision (bf16 products included). `remat`: the step's backward recomputes its elementwise
+    work and keeps its products (`jax.checkpoint_policies.dots_saveable`); `unroll`: lax.scan's.
+    """
+    def step(carry, z_t):
+        carry, (y, _) = decoder_step(params, gi_static, residual, carry, z_t, precision)
+        return carry, y
+
+    if remat:
+        step = jax.checkpoint(step, policy=jax.checkpoint_policies.dots_saveable, prevent_cse=False)
+    return jax.lax.scan(step, (h0, y0), z_seq, unroll=unroll)[1]
