@@ -57,10 +57,15 @@ class Settings:
     gsps_best_of: str = "gram"  # how GSPS's loss forms its best-of-K errors (generator_loss best_of; ab.py --ab gsps_best_of)
 
     @classmethod
+    def from_dict(cls, d: dict) -> "Settings":
+        """Returns the settings `dataclasses.asdict` gave, after a JSON round trip (lists back to tuples); an unknown field is an error."""
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+
+    @classmethod
     def from_record(cls, d: dict) -> "Settings":
         """Returns the settings a results file recorded; a knob since removed (a field not here) is ignored."""
         known = {f.name for f in dataclasses.fields(cls)}
-        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items() if k in known})
+        return cls.from_dict({k: v for k, v in d.items() if k in known})
 
     @classmethod
     def quick(cls, **kw) -> "Settings":

@@ -223,7 +223,7 @@ def main():
     ap.add_argument("--settings", required=True)
     ap.add_argument("--out", required=True)
     args = ap.parse_args()
-    s = Settings(**{k: tuple(v) if isinstance(v, list) else v for k, v in json.loads(args.settings).items()})
+    s = Settings.from_dict(json.loads(args.settings))
     mem = PeakRSS()
     builders = Builders(s)
     records = []

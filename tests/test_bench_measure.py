@@ -95,7 +95,6 @@ def test_by_default_every_call_counts_and_the_probe_is_recorded(monkeypatch):
     assert rec["probe_ms_min"] == pytest.approx(10.0) and rec["probe_ms_median"] == pytest.approx(11.0)
 
 
-
 def test_the_probe_rate_around_a_case_is_recorded_but_does_not_judge_its_target():
     from benchmarks import run
 
@@ -115,3 +114,5 @@ def test_settings_from_a_results_file_ignore_knobs_since_removed():
     rec = {"k": 50, "sample_batches": [1, 64], "encoder_backward": "batched"}  # a knob of an older commit
     s = harness.Settings.from_record(rec)
     assert s.k == 50 and s.sample_batches == (1, 64) and not hasattr(s, "encoder_backward")
+    with pytest.raises(TypeError, match="encoder_backward"):  # the workers' settings come from this run: no unknown field
+        harness.Settings.from_dict(rec)

@@ -184,7 +184,7 @@ def main():
     ap.add_argument("--compile", action="store_true", help="wrap losses and samplers in torch.compile")
     ap.add_argument("--cases", default="", help="comma-separated case kinds to run (default: all)")
     args = ap.parse_args()
-    s = Settings(**{k: tuple(v) if isinstance(v, list) else v for k, v in json.loads(args.settings).items()})
+    s = Settings.from_dict(json.loads(args.settings))
     kinds = set(filter(None, args.cases.split(",")))
     fw = "torch_compile" if args.compile else "torch_eager"
     torch.manual_seed(s.seed)
