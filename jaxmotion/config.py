@@ -29,6 +29,10 @@ class Config:
     dataset: str = "synthetic"  # "synthetic", or a path: BVH folder, Bandai-Namco-2 folder, H36M/HumanEva npz
     data_options: dict = dataclasses.field(default_factory=dict)  # loader options, e.g. {"markers": "bandai"}
     seed: int = 0
+    # Which windows evaluation scores: "test" (the protocol's test split) or "val" (one training
+    # sequence in five per action held back, `jaxmotion.data.validation`; training uses the rest and
+    # the test split is dropped). Settings are chosen on "val", never on "test".
+    split: str = "test"
     # The method's own settings, an instance of its `Method.config_type` (DLowConfig, MojoConfig,
     # DivSampConfig, ...); None means that type's defaults (for DLow: the built-in synthetic job,
     # `jaxmotion.models.dlow.DLowConfig()`, whose comments give the budget's reasons).
@@ -123,7 +127,7 @@ def _unknown_fields(path: Path, namespace: dict) -> list[str]:
     return problems
 
 
-_CHOICES = {"train_sampler": ("windows", "sequences"), "mm_deviation": (None, "divsamp", "comusion", "gsps"),
+_CHOICES = {"split": ("test", "val"), "train_sampler": ("windows", "sequences"), "mm_deviation": (None, "divsamp", "comusion", "gsps"),
             "mm_ground_truth": (None, "test", "train", "motionmap-test", "motionmap-train"),
             "precision": ("float32", "bf16")}  # nn/precision.PRECISIONS (that module imports jax; tested equal)
 # `Config`'s intervals: (field, rule, what the rule asks), checked once the field's type is right.

@@ -26,6 +26,7 @@ from jaxmotion import action_metrics, distributed, metrics
 from jaxmotion.compile_time import CompileTimer
 from jaxmotion.config import Config, to_dict
 from jaxmotion.data.datasets import BANDAI_TARBALL, load_dataset
+from jaxmotion.data.validation import validation_split
 from jaxmotion.data.folder_split import folder_split
 from jaxmotion.data.synthetic import make_synthetic
 from jaxmotion.data.types import MotionDataset
@@ -45,6 +46,12 @@ def resolve(cfg: Config) -> Config:
 
 
 def load_data(cfg: Config, data: str | None = None, test_files: list[str] | None = None) -> MotionDataset:
+    """Returns the dataset of `_load_split` with `cfg.split` applied ("val": `validation_split`, the test split dropped)."""
+    ds = _load_split(cfg, data, test_files)
+    return validation_split(ds) if cfg.split == "val" else ds
+
+
+def _load_split(cfg: Config, data: str | None, test_files: list[str] | None) -> MotionDataset:
     """Returns the dataset named by `data` (a path) or else by `cfg.dataset` ("synthetic" or a path).
 
     `cfg.data_options` go to the loader (e.g. `{"markers": "bandai"}`: Bandai-Namco-2 as markers).

@@ -1,0 +1,34 @@
+# flock /tmp/jaxmotion-heavy.lock jaxmotion run --config experiments/configs/gsps_bandai_val.py --data ../shared/data/bandai-namco-2 --workdir ~/jaxmotion-runs/val/gsps_rule_s0 --seed 0
+#
+# GSPS's diversity settings chosen on the validation split of Bandai-Namco-2 (`Config.split = "val"`:
+# one training clip in five per content held back, 1,372 training and 350 held-back clips, 1,428 windows; the test style is not read). Each
+# variant is gsps_bandai.py's budget and settings with the split and the diversity settings below:
+#   h36m      the release's Human3.6M values (weights 8 / 25, alpha 100 / beta 300), gsps_bandai_val_h36m.py
+#   humaneva  the release's HumanEva-I values (5 / 10, alpha 15 / beta 50), gsps_bandai_val_humaneva.py
+#   rule      HumanEva-I's weights with alpha / beta from `jaxmotion.diversity.gsps_alphas` on the
+#             training windows' spread (`python experiments/diversity_scale.py --data ../shared/data/bandai-namco-2`:
+#             s = 0.466 m, alpha 33.5, beta 106.7; the rule gives 60.1 / 212.4 for Human3.6M and 25.0 / 70.6 for
+#             HumanEva-I, whose releases use 100 / 300 and 15 / 50), this file
+# Sweep results: experiments/README.md, "GSPS: diversity settings on the validation split".
+import dataclasses
+from pathlib import Path
+
+from jaxmotion.config import load_config
+
+VARIANTS = {
+    "h36m": dict(lambda_div_first=8.0, lambda_div_rest=25.0, alpha=100.0, beta=300.0),
+    "humaneva": dict(lambda_div_first=5.0, lambda_div_rest=10.0, alpha=15.0, beta=50.0),
+    "rule": dict(lambda_div_first=5.0, lambda_div_rest=10.0, alpha=33.5, beta=106.7),
+}
+
+
+def variant(name: str):
+    base = load_config(Path(__file__).with_name("gsps_bandai.py"))
+    return dataclasses.replace(
+        base, name=f"gsps_bandai_val_{name}", split="val", curve_every=500,
+        method_config=dataclasses.replace(base.method_config, **VARIANTS[name]),
+    )
+
+
+def get_config():
+    return variant("rule")
