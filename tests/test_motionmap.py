@@ -185,6 +185,41 @@ def test_tsne_embed_separates_clusters():
     assert between > 3 * within
 
 
+def test_tsne_embed_fitted_on_every_code_separates_clusters():
+    pytest.importorskip("openTSNE")
+    rng = np.random.default_rng(5)
+    centres = rng.normal(size=(3, 16)) * 5
+    codes = np.concatenate([c + 0.1 * rng.normal(size=(50, 16)) for c in centres]).astype(np.float32)
+    pts = mm.tsne_embed(codes, fit_points=None, perplexity_fit=20.0)
+    lab = np.repeat(np.arange(3), 50)
+    means = np.stack([pts[lab == k].mean(0) for k in range(3)])
+    within = np.mean([np.linalg.norm(pts[lab == k] - means[k], axis=-1).mean() for k in range(3)])
+    between = np.min([np.linalg.norm(means[a] - means[b]) for a in range(3) for b in range(a + 1, 3)])
+    assert pts.shape == (150, 2) and between > 3 * within
+
+
+def test_member_subsets_keep_one_member_per_cell_before_the_cap():
+    from types import SimpleNamespace
+
+    from jaxmotion.methods.motionmap import Pool
+
+    # Window 0's set: 40 members in 3 cells (cells 0, 1 and 2 hold 30, 8 and 2 of them); window 1's: 2 members.
+    idx = np.zeros((2, 40), np.int32)
+    idx[0] = np.arange(40)
+    idx[1, :2] = [3, 35]
+    mask = np.zeros((2, 40), bool)
+    mask[0], mask[1, :2] = True, True
+    cells = np.asarray([[0, 0]] * 30 + [[5, 7]] * 8 + [[9, 1]] * 2, np.int32)
+    pool = SimpleNamespace(sets=(idx, mask))
+    rng = np.random.default_rng(0)
+    members, ok = Pool.member_subsets(pool, rng, np.asarray([0, 1]), 4, cells)
+    assert ok.sum(1).tolist() == [3, 2]
+    assert sorted(map(tuple, cells[members[0, :3]])) == [(0, 0), (5, 7), (9, 1)]
+    # Without cells, a random 4 of the 40: most draws hold only the crowded cells.
+    distinct = [len({tuple(cells[m]) for m in Pool.member_subsets(pool, rng, np.asarray([0]), 4)[0][0]}) for _ in range(50)]
+    assert np.mean(distinct) < 2.5
+
+
 @pytest.mark.slow
 def test_predict_modes_shapes_and_select_k():
     dim, t_his, t_pred, size = 48, 15, 10, 16

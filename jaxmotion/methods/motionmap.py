@@ -96,12 +96,22 @@ class Pool:
         """Returns the futures of members `m` motion-transferred onto the skeletons of windows `j`."""
         return np.asarray(self._transfer(jnp.asarray(self.y[m]), jnp.asarray(self.x[j, -1])))
 
-    def member_subsets(self, rng: np.random.Generator, j: np.ndarray, cap: int) -> tuple[np.ndarray, np.ndarray]:
-        """Returns `(members (b, cap), mask)`: each window's set, or a random `cap` of it when larger."""
+    def member_subsets(
+        self, rng: np.random.Generator, j: np.ndarray, cap: int, cells: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Returns `(members (b, cap), mask)`: each window's set, or a random `cap` of it when larger.
+
+        With `cells` (the map cell of every pool window) one member per cell is kept first, in a
+        random order, so the cap drops repeated bumps before distinct ones (`dedupe_members`).
+        """
         idx, mask = self.sets
         out, ok = np.zeros((len(j), cap), np.int32), np.zeros((len(j), cap), bool)
         for b, w in enumerate(j):
             s = idx[w, mask[w]]
+            if cells is not None:
+                s = rng.permutation(s)
+                _, first = np.unique(cells[s, 0] * (cells[:, 1].max() + 1) + cells[s, 1], return_index=True)
+                s = s[np.sort(first)]
             if len(s) > cap:
                 s = rng.choice(s, cap, replace=False)
             out[b, : len(s)], ok[b, : len(s)] = s, True
@@ -187,9 +197,15 @@ def stages(cfg, prep) -> list[Stage]:
         m = pool.members(rng, j)
         return {"x": pool.x[j], "y": pool.targets(j, m)}
 
+    map_cells = {}  # the codebook's cell of every pool window, set when the heatmap stage starts (`hm_init`)
+
+    def hm_init(key, frozen):
+        map_cells["cells"] = np.asarray(frozen["codebook"]["cells"]) if c.dedupe_members else None
+        return hm.init(key, x0)
+
     def hm_batches(rng):
         j = rng.integers(0, len(pool.windows), c.batch_size)
-        members, mask = pool.member_subsets(rng, j, c.max_members)
+        members, mask = pool.member_subsets(rng, j, c.max_members, map_cells["cells"])
         return {"x": pool.x[j], "members": members, "mask": mask}
 
     def ft_batches(rng):
@@ -219,7 +235,7 @@ def stages(cfg, prep) -> list[Stage]:
             optimizer=optax.set_to_zero(), loss=None, batches=None, num_steps=0, frozen=("autoencoder",),
         ),
         Stage(
-            name="heatmap", init=lambda key, _f: hm.init(key, x0), optimizer=_adam(c, c.hm_steps), loss=hm_loss,
+            name="heatmap", init=hm_init, optimizer=_adam(c, c.hm_steps), loss=hm_loss,
             batches=hm_batches, num_steps=c.hm_steps, init_seed=cfg.seed + 1, data_seed=cfg.seed + 1,
             frozen=("codebook",),
         ),

@@ -72,8 +72,14 @@ class MotionMapConfig:
     descriptor_frames: int = 3
     mm_threshold: float | None = None  # None: the dataset's PROTOCOL threshold
     max_members: int = 64  # multimodal futures drawn into one ground-truth map (a random subset of larger sets)
+    # Members sharing a map cell draw the same bump: True keeps one member per cell before the cap, so a
+    # set larger than `max_members` keeps as many distinct cells as it can (the release draws every member).
+    dedupe_members: bool = False
+    # The map's density. The release embeds every candidate window (Human3.6M: every 0.1 s) and fits
+    # t-SNE on all of them: `pool_stride=3` at 30 fps and `tsne_fit_points=None`
+    # (experiments/configs/motionmap_bandai_dense.py). These defaults keep the synthetic job's budget.
     pool_stride: int | None = None  # training windows every `pool_stride` frames (None: t_his)
-    tsne_fit_points: int = 2000  # the strided subset openTSNE is fitted on
+    tsne_fit_points: int | None = 2000  # the strided subset openTSNE is fitted on (None: every training window, no transform)
     tsne_perplexity_fit: float = 100.0
     tsne_perplexity_transform: float = 20.0
     peak_min_distance: int = 5  # release `peak_interval`
@@ -102,10 +108,13 @@ class MotionMapConfig:
 
 
 def tsne_embed(
-    codes: Float[np.ndarray, "n c"], *, fit_points: int, perplexity_fit: float = 100.0,
+    codes: Float[np.ndarray, "n c"], *, fit_points: int | None, perplexity_fit: float = 100.0,
     perplexity_transform: float = 20.0, seed: int = 0, n_jobs: int = 2,
 ) -> Float[np.ndarray, "n 2"]:
     """Returns 2-D t-SNE coordinates of every code: openTSNE fitted on a strided subset, then `transform` (release recipe).
+
+    `fit_points=None` fits on every code and returns that embedding (no `transform`); openTSNE's
+    FFT-accelerated gradients keep that affordable for tens of thousands of codes.
 
     Needs the optional dependency openTSNE (`pip install 'jaxmotion[motionmap]'`).
     """
@@ -114,10 +123,13 @@ def tsne_embed(
     except ImportError as e:  # pragma: no cover - depends on the environment
         raise ImportError("MotionMap's map needs openTSNE: pip install 'jaxmotion[motionmap]' (or pip install openTSNE)") from e
     codes = np.asarray(codes, np.float64)
-    stride = max(1, -(-codes.shape[0] // fit_points))
+    stride = 1 if fit_points is None else max(1, -(-codes.shape[0] // fit_points))
     sub = codes[::stride]
     perp = float(min(perplexity_fit, (sub.shape[0] - 1) / 3.0))
-    emb = TSNE(perplexity=perp, initialization="pca", metric="cosine", n_jobs=n_jobs, random_state=seed, verbose=False).fit(sub)
+    tsne = TSNE(perplexity=perp, initialization="pca", metric="cosine", n_jobs=n_jobs, random_state=seed, verbose=False)
+    emb = tsne.fit(sub)
+    if fit_points is None:
+        return np.asarray(emb, np.float32)
     out = emb.transform(codes, perplexity=float(min(perplexity_transform, perp)))
     return np.asarray(out, np.float32)
 
