@@ -2,7 +2,7 @@
 #
 # DLow's `d_scale` chosen on the validation split of Bandai-Namco-2 (`Config.split = "val"`: one
 # training clip in five per content held back, 1,428 windows; the test style is not read): the
-# budget and settings of dlow_bandai.py with the split and the Q network's d_scale below.
+# budget and settings of dlow_bandai.py with the split and the Q network's d_scale below (no CMD / FID).
 #   h36m      100, the release's Human3.6M value (every earlier Bandai config), dlow_bandai_val_h36m.py
 #   rule      32.6, `jaxmotion.diversity.dlow_d_scale` on the training windows' spread
 #             (`python experiments/diversity_scale.py --data ../shared/data/bandai-namco-2`: s = 0.466 m;
@@ -23,7 +23,7 @@ def variant(name: str):
     base = load_config(Path(__file__).with_name("dlow_bandai.py"))
     m = base.method_config
     return dataclasses.replace(
-        base, name=f"dlow_bandai_val_{name}", split="val",
+        base, name=f"dlow_bandai_val_{name}", split="val", action_metrics=False,
         method_config=dataclasses.replace(m, q=dataclasses.replace(m.q, d_scale=VARIANTS[name])),
     )
 
