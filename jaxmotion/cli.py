@@ -163,6 +163,7 @@ def main(argv: list[str] | None = None) -> int:
         import jax.numpy as jnp
         import numpy as np
 
+        from jaxmotion.formats.atomic import savez_atomic
         from jaxmotion.viz import plot_futures
 
         if not 0 <= args.window < len(prep.windows):
@@ -179,7 +180,7 @@ def main(argv: list[str] | None = None) -> int:
         i = args.window
         preds = np.asarray(fn(jnp.asarray(prep.x[i : i + 1]), jax.random.key(cfg.seed)))[0]
         out = workdir / f"sample_w{i}_{args.method}_k{k}"
-        np.savez(out.with_suffix(".npz"), x=prep.x[i], y=prep.y[i], preds=preds)
+        savez_atomic(out.with_suffix(".npz"), x=prep.x[i], y=prep.y[i], preds=preds)
         plot_futures(prep.x[i], preds, prep.y[i], ds.skeleton.parents, out.with_suffix(".png"),
                      title=f"{label}: window {i}, {args.method}, K={k}")
         print(f"wrote {out}.npz and {out}.png")
@@ -234,6 +235,7 @@ def _sample_fixed_parts(part_control, cfg, prep, params, i: int, k: int, fix: tu
     import jax
     import numpy as np
 
+    from jaxmotion.formats.atomic import savez_atomic
     from jaxmotion.viz import plot_futures
 
     ds = prep.dataset
@@ -244,7 +246,7 @@ def _sample_fixed_parts(part_control, cfg, prep, params, i: int, k: int, fix: tu
     spread = preds.reshape(k, ds.t_pred, -1, 3).std(axis=0).max(axis=(0, 2))  # per joint (root dropped), m
     held = spread < 1e-5  # identical up to float32 rounding
     out = workdir / f"sample_w{i}_{cfg.method}_k{k}_fix-{'-'.join(fix)}"
-    np.savez(out.with_suffix(".npz"), x=prep.x[i], y=prep.y[i], preds=preds, fix=np.asarray(fix), joint_spread=spread)
+    savez_atomic(out.with_suffix(".npz"), x=prep.x[i], y=prep.y[i], preds=preds, fix=np.asarray(fix), joint_spread=spread)
     plot_futures(prep.x[i], preds, prep.y[i], ds.skeleton.parents, out.with_suffix(".png"),
                  title=f"{cfg.method} part control: {', '.join(fix)} held, the rest varies ({label}: test window {i}, K={k})")
     names = [n for n, h in zip(ds.skeleton.names[1:], held) if h]

@@ -22,6 +22,7 @@ import jax
 import numpy as np
 
 from jaxmotion.errors import DataError
+from jaxmotion.formats.atomic import savez_atomic
 from jaxmotion.formats.bvh import Bvh, forward_kinematics, guess_scale, read_bvh
 from jaxmotion.formats.bvh_write import read_end_sites, write_bvh
 from jaxmotion.data.windows import resample  # noqa: F401 (also part of this module's interface)
@@ -172,7 +173,7 @@ def predict_file(
     root = joints[end, 0]
     fut_j = np.concatenate([np.zeros((k, t_pred, 1, 3)), futures.reshape(k, t_pred, -1, 3)], axis=2) + root
     obs_j = joints[end + 1 - t_his : end + 1]
-    np.savez(
+    savez_atomic(
         out / "futures.npz", futures=futures, observed=x, ground_truth=gt if gt is not None else np.zeros((0,) + x.shape[1:]),
         joints=fut_j.astype(np.float32), observed_joints=obs_j.astype(np.float32), names=np.array(lay["joints"]),
         parents=np.array(lay["parents"]), fps=fps, t_his=t_his, t_pred=t_pred, method=method, k=k, end_frame=end,

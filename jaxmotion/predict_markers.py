@@ -29,6 +29,7 @@ import numpy as np
 from jaxmotion.body.markersets import MARKER_SPECS
 from jaxmotion.data.windows import resample
 from jaxmotion.errors import DataError
+from jaxmotion.formats.atomic import savez_atomic
 from jaxmotion.predictor import MotionPredictor
 
 MAX_GAP_S = 0.1
@@ -211,7 +212,7 @@ def predict_markers(
     world = futures.reshape(k, t_pred, m, 3) @ canon[:3] + canon[3]  # R^T q + o, input world in metres
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    np.savez(
+    savez_atomic(
         out / "futures.npz", futures=futures, observed=x, ground_truth=gt if gt is not None else np.zeros((0,) + x.shape[1:]),
         markers=world.astype(np.float32), observed_markers=w.observed.astype(np.float32), canon=canon.astype(np.float32),
         names=np.array(markers), fps=fps, t_his=t_his, t_pred=t_pred, method=method, k=k, end_frame=end,

@@ -28,6 +28,7 @@ import numpy as np
 from jaxmotion.config import Config, to_dict
 from jaxmotion.data.types import MotionDataset, Skeleton
 from jaxmotion.errors import CheckpointError
+from jaxmotion.formats.atomic import write_text_atomic
 
 MANIFEST = "predictor.json"
 VERSION = 1
@@ -79,10 +80,7 @@ def write_manifest(cfg: Config, ds: MotionDataset, workdir: str | Path, data: st
         "config": to_dict(cfg),
     }
     path = workdir / MANIFEST
-    tmp = path.with_name(MANIFEST + ".tmp")
-    tmp.write_text(json.dumps(manifest, indent=1, default=_json_default))
-    tmp.replace(path)
-    return path
+    return write_text_atomic(path, json.dumps(manifest, indent=1, default=_json_default))
 
 
 def _json_default(v):

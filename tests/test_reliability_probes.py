@@ -49,3 +49,49 @@ def test_the_restricted_unpickler_still_reads_numpy_pickles(tmp_path):
     np.savez_compressed(path, positions_3d=np.array(data, dtype=object))
     ds = load_dataset(path)
     assert ds.name == "h36m" and len(ds.train) == 10 and float(ds.train[1].positions[0, 0, 0]) == 0.5
+
+
+# --- a failed write loses no result ------------------------------------------------------------------
+
+
+def _failing_writes_to(monkeypatch, part: str):
+    """Makes every file opened for writing whose name contains `part` fail with ENOSPC after its first 16 bytes."""
+    import builtins
+    import errno
+    import io
+
+    real_open = io.open
+
+    class Full(io.FileIO):
+        def write(self, b):
+            if self.tell() + len(b) > 16:
+                super().write(bytes(b)[: max(0, 16 - self.tell())])
+                raise OSError(errno.ENOSPC, "No space left on device (injected)")
+            return super().write(b)
+
+    def open_(file, mode="r", *args, **kwargs):
+        if part in os.path.basename(os.fspath(file)) and any(c in mode for c in "wax+"):
+            raw = Full(file, mode.replace("t", "").replace("b", "") or "w")
+            return raw if "b" in mode else io.TextIOWrapper(io.BufferedWriter(raw), encoding=kwargs.get("encoding"))
+        return real_open(file, mode, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "open", open_)
+    monkeypatch.setattr(io, "open", open_)
+
+
+@pytest.mark.slow
+def test_a_failed_metrics_write_leaves_the_previous_metrics_byte_identical(tiny_cli_run, tmp_path, monkeypatch):
+    import shutil
+
+    from jaxmotion.cli import main
+
+    cfg, work = tiny_cli_run
+    run = tmp_path / "run"
+    shutil.copytree(work, run)
+    before = (run / "metrics.json").read_bytes()
+    _failing_writes_to(monkeypatch, "metrics")
+    with pytest.raises(OSError, match="No space left on device"):
+        main(["eval", "--config", str(cfg), "--workdir", str(run)])
+    monkeypatch.undo()
+    assert (run / "metrics.json").read_bytes() == before
+    assert sorted(p.name for p in run.iterdir() if "metrics" in p.name) == ["metrics.json"]  # no temporary left

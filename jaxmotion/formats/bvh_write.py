@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from jaxmotion.errors import DataError
+from jaxmotion.formats.atomic import write_text_atomic
 from jaxmotion.formats.bvh import _POSITION_AXES, Bvh
 
 POSITION_AXES = _POSITION_AXES  # BVH position channel name -> axis index
@@ -160,5 +161,5 @@ def write_bvh(path: str | os.PathLike, bvh: Bvh, end_sites: dict[int, np.ndarray
     out += ["MOTION", f"Frames: {bvh.num_frames}", f"Frame Time: {bvh.frame_time:.10f}"]
     out += [fmt(row) for row in bvh.motion]
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(out) + "\n")
+    write_text_atomic(path, "\n".join(out) + "\n")
     return path
