@@ -160,7 +160,7 @@ def predict_file(
     frames = (joints[:, 1:] - joints[:, :1]).reshape(n, -1).astype(np.float32)
     x = frames[end + 1 - t_his : end + 1]
     gt = frames[end + 1 : end + 1 + t_pred] if end + t_pred < n else None
-    k = k or model.default_k
+    k = model.default_k if k is None else k
     if method is None:
         method = model.main_method(k)
         if method != model.config.method:

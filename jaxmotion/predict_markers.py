@@ -205,7 +205,7 @@ def predict_markers(
     fps, t_his, t_pred = lay["fps"], lay["t_his"], lay["t_pred"]
     markers = list(lay["joints"][1:])
     m = len(markers)
-    k = k or model.default_k
+    k = model.default_k if k is None else k
     if method is None:
         method = model.main_method(k)
     futures = model.predict(x, k, jax.random.key(seed), method)  # (K, t_pred, 3M) canonical frame

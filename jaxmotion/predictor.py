@@ -229,7 +229,7 @@ class MotionPredictor:
         `x` is observed frames in `layout` (metres, root-relative, root dropped); `method` defaults to the
         run's own (`methods` lists the others), `k` to the config's largest K, `key` to `key(0)`.
         """
-        k = k or self.default_k
+        k = self.default_k if k is None else k
         x = np.asarray(x, np.float32)
         single = x.ndim == 2
         xb = x[None] if single else x
@@ -237,6 +237,8 @@ class MotionPredictor:
             raise ValueError(f"predict: x must be (t_his={self.t_his}, D={self.dim}) or (b, {self.t_his}, {self.dim}), got {x.shape}")
         if not np.all(np.isfinite(xb)):
             raise ValueError("predict: x holds NaN or inf")
+        if k < 1:
+            raise ValueError(f"predict: k (the number of futures) must be >= 1, got {k}")
         fns = self.predictors(k)
         method = method or self.main_method(k)
         if method not in fns:
@@ -245,6 +247,11 @@ class MotionPredictor:
                 f"such as DLow's exists for the trained K in {tuple(self.config.eval_k)})"
             )
         out = np.asarray(fns[method](jnp.asarray(xb), jax.random.key(0) if key is None else key))
+        if not np.isfinite(out).all():  # never handed on (or written) as if they were futures
+            raise CheckpointError(
+                f"{self.run_dir}: the {method!r} futures of this input hold NaN or inf (the run's parameters are broken, "
+                "or the input is far outside what it was trained on); nothing was written"
+            )
         return out[0] if single else out
 
 
