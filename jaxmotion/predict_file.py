@@ -21,9 +21,9 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jaxmotion.errors import DataError
+from jaxmotion.errors import DataError, UsageError
 from jaxmotion.formats.atomic import savez_atomic
-from jaxmotion.formats.bvh import Bvh, forward_kinematics, guess_scale, read_bvh
+from jaxmotion.formats.bvh import MAX_JOINTS, Bvh, forward_kinematics, guess_scale, read_bvh
 from jaxmotion.formats.bvh_write import read_end_sites, write_bvh
 from jaxmotion.data.windows import resample  # noqa: F401 (also part of this module's interface)
 from jaxmotion.formats.c3d import read_c3d
@@ -55,11 +55,11 @@ def read_motion(path: str | Path, scale: float | None = None) -> Motion:
         bvh = read_bvh(path)
         s = guess_scale(bvh) if scale is None else scale
         notes = [f"units: {s:g} m per file unit ({'guessed from the skeleton' if scale is None else '--scale'})"]
-        return Motion(path, bvh.names, forward_kinematics(bvh) * s, bvh.fps, s, 1, bvh, notes)
+        return _checked(Motion(path, bvh.names, forward_kinematics(bvh) * s, bvh.fps, s, 1, bvh, notes))
     if path.suffix.lower() == ".c3d":  # markers, NaN at gaps, for marker models (`predict_markers`)
         rec = read_c3d(path)
         s = {"mm": 1e-3, "cm": 1e-2, "dm": 0.1, "m": 1.0}[rec.units]
-        return Motion(path, rec.labels, rec.points.astype(np.float64), rec.rate, s, None, None, [f"units: {rec.units} (POINT:UNITS)"])
+        return _checked(Motion(path, rec.labels, rec.points.astype(np.float64), rec.rate, s, None, None, [f"units: {rec.units} (POINT:UNITS)"]), unique_names=False)
     if path.suffix.lower() == ".npz":
         try:
             z = dict(np.load(path, allow_pickle=False))
@@ -73,11 +73,32 @@ def read_motion(path: str | Path, scale: float | None = None) -> Motion:
         names = tuple(str(n) for n in z["names"]) if "names" in z else None
         if names is not None and len(names) != pos.shape[1]:
             raise DataError(path, f"{len(names)} names for {pos.shape[1]} joints")
-        s = float(z["scale"]) if "scale" in z else (1.0 if scale is None else scale)
-        fps = float(z["fps"]) if "fps" in z else None
-        up = int(z["up_axis"]) if "up_axis" in z else None
-        return Motion(path, names, pos * s, fps, s, up, None, [f"units: {s:g} m per unit"])
+        try:
+            s = float(z["scale"]) if "scale" in z else (1.0 if scale is None else scale)
+            fps = float(z["fps"]) if "fps" in z else None
+            up = float(z["up_axis"]) if "up_axis" in z else None
+        except (TypeError, ValueError) as e:
+            raise DataError(path, f"'scale', 'fps' and 'up_axis' must be single numbers ({e})") from None
+        if up is not None and up not in (0, 1, 2):
+            raise DataError(path, f"'up_axis' must be 0, 1 or 2 (x, y or z), got {up:g}")
+        return _checked(Motion(path, names, pos * s, fps, s, None if up is None else int(up), None, [f"units: {s:g} m per unit"]))
     raise DataError(path, "expected a .bvh clip, an .npz of joint positions or a .c3d marker file")
+
+
+def _checked(m: Motion, unique_names: bool = True) -> Motion:
+    """Returns `m` after checking what a file (or `--scale`) could make wrong without a parser noticing."""
+    if not (np.isfinite(m.scale) and m.scale > 0):  # a negative scale mirrors the body
+        raise DataError(m.path, f"scale must be a finite number of metres per unit > 0, got {m.scale}")
+    if m.fps is not None and not (np.isfinite(m.fps) and m.fps > 0):
+        raise DataError(m.path, f"frame rate must be a finite number > 0, got {m.fps}")
+    if unique_names and m.names is not None:  # C3D labels are matched by `predict_markers.match_markers`
+        seen = set()
+        twice = [n for n in m.names if n in seen or seen.add(n)]
+        if twice:  # joints are matched by name: which one is meant?
+            raise DataError(m.path, f"joint names used twice: {sorted(set(twice))}")
+    if m.positions.shape[1] > MAX_JOINTS:
+        raise DataError(m.path, f"{m.positions.shape[1]} joints, more than {MAX_JOINTS} (formats.bvh.MAX_JOINTS); not a body")
+    return m
 
 
 def match_joints(motion: Motion, joints: list[str]) -> np.ndarray:
@@ -115,6 +136,8 @@ def predict_file(
     `frame` defaults to the last frame whose full future is still in the clip (then the GIF shows the
     ground truth), or the clip's last frame when it is shorter than `t_his + t_pred`.
     """
+    if Path(out).exists() and not Path(out).is_dir():
+        raise UsageError(f"--out {out} is a file; give a folder (it receives futures.npz, future_NN.bvh, samples.gif)")
     lay = model.layout
     if lay["frames"] == "global":  # a marker model (MOJO on markers): labels, gaps, canonical frame
         return predict_markers(model, read_motion(path, scale), out, frame=frame, k=k, method=method, seed=seed, gif=gif)
@@ -132,13 +155,13 @@ def predict_file(
     fps_in, fps = motion.fps, lay["fps"]
     n_in = pos.shape[0]
     if frame is not None and not 0 <= frame < n_in:
-        raise ValueError(f"--frame must be in [0, {n_in}) for {motion.path} ({n_in} frames), got {frame}")
+        raise UsageError(f"--frame must be in [0, {n_in}) for {motion.path} ({n_in} frames), got {frame}")
     if fps_in is None:
         notes.append(f"frame rate: not in the file, taken as the model's {fps:g} fps")
         fps_in = fps
     ratio = fps / fps_in
     if abs(ratio - 1) > 0.01:
-        pos = resample(pos, fps_in, fps)
+        pos = resample(pos, fps_in, fps, str(motion.path))
         notes.append(
             f"frame rate: resampled from {fps_in:g} to {fps:g} fps by linear interpolation of joint positions "
             f"({n_in} -> {pos.shape[0]} frames); --frame counts input frames"

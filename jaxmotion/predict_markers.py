@@ -28,7 +28,7 @@ import numpy as np
 
 from jaxmotion.body.markersets import MARKER_SPECS
 from jaxmotion.data.windows import resample
-from jaxmotion.errors import DataError
+from jaxmotion.errors import DataError, UsageError
 from jaxmotion.formats.atomic import savez_atomic
 from jaxmotion.predictor import MotionPredictor
 
@@ -136,7 +136,7 @@ def marker_window(motion, lay: dict, frame: int | None = None) -> MarkerWindow:
         notes.append(f"frame rate: not in the file, taken as the model's {fps:g} fps")
         fps_in = fps
     if frame is not None and not 0 <= frame < n_in:
-        raise ValueError(f"--frame must be in [0, {n_in}) for {motion.path} ({n_in} frames), got {frame}")
+        raise UsageError(f"--frame must be in [0, {n_in}) for {motion.path} ({n_in} frames), got {frame}")
     max_gap = int(round(MAX_GAP_S * fps_in))
     pos, filled = fill_gaps(raw, max_gap)
     gap_in = ~np.all(np.isfinite(pos), axis=-1)  # (n_in, M) what filling left, input frames
@@ -144,7 +144,7 @@ def marker_window(motion, lay: dict, frame: int | None = None) -> MarkerWindow:
         notes.append(f"gaps: {filled} marker samples in gaps of at most {max_gap} frames ({MAX_GAP_S:g} s) linearly interpolated")
     ratio = fps / fps_in
     if abs(ratio - 1) > 0.01:
-        pos = resample(pos, fps_in, fps)
+        pos = resample(pos, fps_in, fps, str(motion.path))
         notes.append(f"frame rate: resampled from {fps_in:g} to {fps:g} fps by linear interpolation ({n_in} -> {pos.shape[0]} frames); --frame counts input frames")
     else:
         ratio = 1.0

@@ -27,7 +27,7 @@ import numpy as np
 
 from jaxmotion.config import Config, to_dict
 from jaxmotion.data.types import MotionDataset, Skeleton
-from jaxmotion.errors import CheckpointError
+from jaxmotion.errors import CheckpointError, UsageError
 from jaxmotion.formats.atomic import write_text_atomic
 
 MANIFEST = "predictor.json"
@@ -238,11 +238,11 @@ class MotionPredictor:
         if not np.all(np.isfinite(xb)):
             raise ValueError("predict: x holds NaN or inf")
         if k < 1:
-            raise ValueError(f"predict: k (the number of futures) must be >= 1, got {k}")
+            raise UsageError(f"predict: k (the number of futures) must be >= 1, got {k}")
         fns = self.predictors(k)
         method = method or self.main_method(k)
         if method not in fns:
-            raise ValueError(
+            raise UsageError(
                 f"predict: method {method!r} at K={k} is not available; available: {sorted(fns)} (a per-K network "
                 f"such as DLow's exists for the trained K in {tuple(self.config.eval_k)})"
             )
