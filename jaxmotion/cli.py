@@ -304,6 +304,48 @@ def _sample_fixed_parts(part_control, cfg, prep, params, i: int, k: int, fix: tu
             f"{spread[~held].max() if (~held).any() else 0.0:.3f} m")
 
 
+class _LateLoopTracebacksDropped:
+    """Stderr without the "RuntimeError: Event loop is closed" tracebacks of tensorstore's late reads.
+
+    When one array of a checkpoint fails to read, orbax's restore raises and closes its event loop,
+    but tensorstore finishes the other reads it started and hands each result to that closed loop
+    (`call_soon_threadsafe`); each prints a traceback from tensorstore's threads, 5-16 for a DLow run,
+    before and after the error's one line. Nobody waits for those reads. A traceback is held from its
+    header to its exception line, and dropped only when it is that one; everything else passes.
+    """
+
+    _HEADER = "Traceback (most recent call last):"
+
+    def __init__(self, stream):
+        import threading
+
+        self.stream, self._lock, self._held, self._owner = stream, threading.Lock(), None, None
+
+    def write(self, s: str) -> int:
+        import threading
+
+        me = threading.get_ident()
+        with self._lock:
+            if self._held is None or self._owner != me:
+                if not s.startswith(self._HEADER) or self._held is not None:
+                    return self.stream.write(s)
+                self._held, self._owner = "", me
+            self._held += s
+            lines = self._held.splitlines()
+            last = lines[-1] if self._held.endswith("\n") else ""
+            if last and not last.startswith((" ", self._HEADER)):  # the exception line: the traceback is whole
+                held, self._held = self._held, None
+                if not (last == "RuntimeError: Event loop is closed" and "call_soon_threadsafe" in held):
+                    self.stream.write(held)
+            return len(s)
+
+    def flush(self) -> None:
+        self.stream.flush()
+
+    def __getattr__(self, name):  # fileno, isatty, encoding ... of the real stream
+        return getattr(self.stream, name)
+
+
 def _report(e: BaseException, prog: str = "jaxmotion") -> int:
     """Prints a user's error as one line on stderr; returns exit code 2."""
     print(f"{prog}: error: {e}", file=sys.stderr, flush=True)
@@ -316,12 +358,13 @@ def entry() -> int:
     A bad file, config, checkpoint, run folder or option is the user's to fix, and its message names
     what is wrong, so the traceback through jaxmotion's internals is left out (`USER_ERRORS`; a
     `SystemExit` with a message is one too). `main` itself raises them (for tests and for code that
-    calls it). A failed checkpoint restore waits for tensorstore's stray reads
-    (`train.loop.after_failed_restore`), so no background thread prints a traceback after the message.
+    calls it). Tensorstore's late "Event loop is closed" tracebacks after a failed checkpoint restore
+    are dropped (`_LateLoopTracebacksDropped`), so the message is all a user sees.
     """
     from jaxmotion.hugepages import exec_with_hugepages
 
     exec_with_hugepages()  # once, before anything runs: large XLA buffers in 2 MiB pages (jaxmotion/hugepages.py)
+    sys.stderr = _LateLoopTracebacksDropped(sys.stderr)
     try:
         return main()
     except USER_ERRORS as e:

@@ -126,12 +126,28 @@ def _config_code(path: Path, namespace: dict):
         where = f"line {line}: " if line is not None else ""
         problem = f"{where}{type(e).__name__}: {e}"
         m = re.fullmatch(r"'(\w+)' object has no attribute '(\w+)'", str(e)) if isinstance(e, AttributeError) else None
-        cls = m and {"Config": Config, **namespace}.get(m[1])
-        if m and dataclasses.is_dataclass(cls):
+        cls = m and _config_types(namespace).get(m[1])
+        if cls is not None:
             names = [f.name for f in dataclasses.fields(cls)]
             near = difflib.get_close_matches(m[2], names, n=1)
             problem = f"{where}unknown field {m[2]!r} of {m[1]}" + (f"; did you mean {near[0]!r}?" if near else f"; fields: {names}")
         raise ConfigError(str(path), [problem]) from None
+
+
+def _config_types(namespace: dict) -> dict[str, type]:
+    """Returns the config dataclasses by name: `Config`, every registered method's settings, the file's own, and their nested ones."""
+    from jaxmotion.methods import methods  # the registry imports the models, which import this module
+
+    todo = [Config, *(m.config_type for m in methods().values()), *(v for v in namespace.values() if isinstance(v, type))]
+    found: dict[str, type] = {}
+    while todo:
+        t = todo.pop()
+        if not (isinstance(t, type) and dataclasses.is_dataclass(t)) or t.__name__ in found:
+            continue
+        found[t.__name__] = t
+        with contextlib.suppress(Exception):
+            todo += typing.get_type_hints(t).values()
+    return found
 
 
 def _unknown_fields(path: Path, namespace: dict) -> list[str]:

@@ -196,14 +196,7 @@ def predict_file(
     root = joints[end, 0]
     fut_j = np.concatenate([np.zeros((k, t_pred, 1, 3)), futures.reshape(k, t_pred, -1, 3)], axis=2) + root
     obs_j = joints[end + 1 - t_his : end + 1]
-    savez_atomic(
-        out / "futures.npz", futures=futures, observed=x, ground_truth=gt if gt is not None else np.zeros((0,) + x.shape[1:]),
-        joints=fut_j.astype(np.float32), observed_joints=obs_j.astype(np.float32), names=np.array(lay["joints"]),
-        parents=np.array(lay["parents"]), fps=fps, t_his=t_his, t_pred=t_pred, method=method, k=k, end_frame=end,
-        input=str(motion.path), notes="\n".join(notes),
-    )
-    written = [out / "futures.npz"]
-    # Back to the input's world and units for the BVH files.
+    # Back to the input's world and units for the BVH files, all built before anything is written.
     to_file = lambda p: _roll(p, -shift) / motion.scale  # noqa: E731
     if motion.bvh is not None:
         template = dataclasses.replace(motion.bvh, frame_time=1.0 / fps)
@@ -213,7 +206,8 @@ def predict_file(
         end_sites = read_end_sites(motion.path)
         ref_motion = template.motion[min(ref, template.num_frames - 1)]
     else:
-        names, parents = tuple(lay["joints"]), tuple(lay["parents"])
+        names, parents, end_sites = tuple(lay["joints"]), tuple(lay["parents"]), None
+    bvhs = []
     for i in range(k):
         seq = to_file(np.concatenate([obs_j, fut_j[i]]))  # (t_his + t_pred, J_model, 3)
         if motion.bvh is not None:
@@ -221,11 +215,19 @@ def predict_file(
             targets[:, idx] = seq
             # Reference pose (twist, joints the model does not predict): the input's frame at the window's end.
             tpl = dataclasses.replace(template, motion=ref_motion[None])
-            fitted = fit_bvh(tpl, targets, known, reference_frame=0)
-            p = write_bvh(out / f"future_{i:02d}.bvh", fitted, end_sites)
+            try:
+                bvhs.append(fit_bvh(tpl, targets, known, reference_frame=0))
+            except ValueError as e:  # a joint that cannot rotate (CHANNELS 0) but must to follow the future
+                raise DataError(motion.path, f"the futures cannot be written on this skeleton ({e}); nothing was written") from None
         else:
-            p = write_bvh(out / f"future_{i:02d}.bvh", bvh_from_positions(names, parents, seq, fps, rest_frame=t_his - 1))
-        written.append(p)
+            bvhs.append(bvh_from_positions(names, parents, seq, fps, rest_frame=t_his - 1))
+    savez_atomic(
+        out / "futures.npz", futures=futures, observed=x, ground_truth=gt if gt is not None else np.zeros((0,) + x.shape[1:]),
+        joints=fut_j.astype(np.float32), observed_joints=obs_j.astype(np.float32), names=np.array(lay["joints"]),
+        parents=np.array(lay["parents"]), fps=fps, t_his=t_his, t_pred=t_pred, method=method, k=k, end_frame=end,
+        input=str(motion.path), notes="\n".join(notes),
+    )
+    written = [out / "futures.npz"] + [write_bvh(out / f"future_{i:02d}.bvh", b, end_sites) for i, b in enumerate(bvhs)]
     if gif:
         from jaxmotion.animate import animate_futures
 

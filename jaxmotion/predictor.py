@@ -15,7 +15,6 @@ data (which the methods' `stages` read to build their batches) is touched.
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import json
 import typing
 from pathlib import Path
@@ -27,7 +26,7 @@ import numpy as np
 
 from jaxmotion.config import Config, to_dict
 from jaxmotion.data.types import MotionDataset, Skeleton
-from jaxmotion.errors import CheckpointError, UsageError
+from jaxmotion.errors import CheckpointError, ConfigError, UsageError
 from jaxmotion.formats.atomic import write_text_atomic
 
 MANIFEST = "predictor.json"
@@ -98,8 +97,13 @@ def config_from_dict(d: dict) -> Config:
     mc = d.pop("method_config", None)
     cfg = _build(Config, {**d, "method_config": None})
     if type_name is not None and mc is not None:
-        module, _, name = type_name.rpartition(".")
-        cfg = dataclasses.replace(cfg, method_config=_build(getattr(importlib.import_module(module), name), mc))
+        # Only a registered method's settings type: a run folder from elsewhere names no module to import.
+        from jaxmotion.methods import methods
+
+        known = {f"{t.__module__}.{t.__name__}": t for t in (m.config_type for m in methods().values())}
+        if type_name not in known:
+            raise ConfigError("the run's config", [f"method_config_type {type_name!r} is not a registered method's settings type ({sorted(known)})"])
+        cfg = dataclasses.replace(cfg, method_config=_build(known[type_name], mc))
     return cfg
 
 
@@ -161,9 +165,12 @@ class MotionPredictor:
                 f"{path}: not found; {self.run_dir} is not a trained run (jaxmotion run / train write it), "
                 "or it was trained before predictor.json existed: `jaxmotion eval` on it writes it"
             )
-        self.manifest = json.loads(path.read_text())
-        self.layout = self.manifest["layout"]
-        self.config = config_from_dict(self.manifest["config"])
+        try:
+            self.manifest = json.loads(path.read_text())
+            self.layout = self.manifest["layout"]
+            self.config = config_from_dict(self.manifest["config"])
+        except (ValueError, KeyError, TypeError) as e:  # cut short, edited by hand, or another program's file
+            raise CheckpointError(f"{path}: unreadable ({type(e).__name__}: {e}); `jaxmotion eval` on the run writes it again") from None
         self.method = get_method(self.config.method)
         lay = self.layout
         self.skeleton = Skeleton(tuple(lay["joints"]), tuple(lay["parents"]))

@@ -47,8 +47,14 @@ def run_lock(workdir: str | os.PathLike, what: str = "jaxmotion") -> Iterator[Pa
                 workdir, f"in use by another jaxmotion process (pid {pid}{host}, lock file {LOCK_FILE}); "
                 "wait for it to finish, or choose another --workdir"
             ) from None
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()} {socket.gethostname()} {what}\n".encode(), 0)
+        try:  # a folder made read-only after the lock file was written: found now, not after the work
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"{os.getpid()} {socket.gethostname()} {what}\n".encode(), 0)
+            probe = workdir / f".jaxmotion.write-test.{os.getpid()}"
+            probe.touch()
+            probe.unlink()
+        except OSError as e:
+            raise RunFolderError(workdir, f"cannot write to the run folder ({type(e).__name__}: {e.strerror or e})") from None
         try:
             yield path
         finally:

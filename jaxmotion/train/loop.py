@@ -19,11 +19,9 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
-import io
 import json
 import math
 import os
-import sys
 import time
 import warnings
 from collections.abc import Callable
@@ -422,8 +420,7 @@ def restore_untargeted(ckpt: str | Path) -> tuple[int, Any]:
         step = mngr.latest_step()
         if step is None:
             raise CheckpointError(f"{ckpt}: no checkpoint; train this run first (jaxmotion train)")
-        with after_failed_restore():
-            tree = mngr.restore(step, args=ocp.args.StandardRestore(fallback_sharding=local_sharding()))
+        tree = mngr.restore(step, args=ocp.args.StandardRestore(fallback_sharding=local_sharding()))
         verify_restored(ckpt, step, tree)
         return step, tree
     except CorruptCheckpoint as e:
@@ -436,30 +433,8 @@ def restore_untargeted(ckpt: str | Path) -> tuple[int, Any]:
         mngr.close()
 
 
-@contextlib.contextmanager
-def after_failed_restore(seconds: float = 1.0):
-    """On an exception in the block, waits `seconds` for tensorstore's stray reads with their output dropped, then re-raises.
-
-    When one array of a checkpoint fails to read, orbax's restore raises at once and closes its event
-    loop, but tensorstore finishes the other reads it started and hands each result to that closed
-    loop: a "RuntimeError: Event loop is closed" traceback per read, printed from tensorstore's threads
-    after the error (5-16 of them for a DLow run). Nobody waits for those reads; their tracebacks would
-    bury the error's one line.
-    """
-    try:
-        yield
-    except Exception:
-        stderr, sys.stderr = sys.stderr, io.StringIO()
-        try:
-            time.sleep(seconds)
-        finally:
-            sys.stderr = stderr
-        raise
-
-
 def _restore(mngr: ocp.CheckpointManager, step: int, state: TrainState) -> TrainState:
     """Returns checkpoint `step` restored into the structure of `state`, with `state`'s frozen inputs."""
-    with after_failed_restore():
-        restored = mngr.restore(step, args=ocp.args.StandardRestore(state.replace(frozen=None)))
+    restored = mngr.restore(step, args=ocp.args.StandardRestore(state.replace(frozen=None)))
     verify_restored(Path(mngr.directory), step, restored)
     return restored.replace(frozen=state.frozen)
