@@ -531,3 +531,27 @@ def test_stderr_filter_drops_only_late_event_loop_tracebacks():
         for piece in text.splitlines(keepends=True):  # as the interpreter prints a traceback: a line at a time
             f.write(piece)
     assert out.getvalue() == "before\nprogress\r" + other + "after\n"
+
+
+@pytest.mark.slow
+def test_a_joint_that_cannot_rotate_is_one_line_and_nothing_is_written(run_copy, tmp_path):
+    import dataclasses
+
+    from jaxmotion.data.synthetic import make_synthetic
+    from jaxmotion.formats.bvh_write import write_bvh
+    from jaxmotion.retarget import bvh_from_positions
+
+    _, make = run_copy
+    run = make("channels0")
+    ds = make_synthetic(0)
+    b = bvh_from_positions(ds.skeleton.names, ds.skeleton.parents, ds.test[0].positions[:120], ds.fps)
+    j = b.names.index("LKnee")
+    start, n = b.channel_starts[j], len(b.channels[j])
+    channels = tuple(() if i == j else c for i, c in enumerate(b.channels))
+    clip = write_bvh(tmp_path / "ch0.bvh", dataclasses.replace(b, channels=channels, motion=np.delete(b.motion, range(start, start + n), axis=1)))
+    lines = clip.read_text().splitlines()
+    at = lines.index("\t\tJOINT LKnee") + 3  # after its '{' and OFFSET: the writer leaves out an empty CHANNELS line
+    clip.write_text("\n".join(lines[:at] + ["\t\t\tCHANNELS 0"] + lines[at:]) + "\n")
+    _one_error_line(_cli("predict", run, "--input", clip, "--out", tmp_path / "o"),
+                    r"ch0\.bvh: the futures cannot be written on this skeleton \(.*joint 'LKnee' has no rotation channels.*nothing was written")
+    assert not any((tmp_path / "o").glob("*"))
