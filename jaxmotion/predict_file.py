@@ -55,7 +55,7 @@ def read_motion(path: str | Path, scale: float | None = None) -> Motion:
         bvh = read_bvh(path)
         s = guess_scale(bvh) if scale is None else scale
         notes = [f"units: {s:g} m per file unit ({'guessed from the skeleton' if scale is None else '--scale'})"]
-        return _checked(Motion(path, bvh.names, forward_kinematics(bvh) * s, bvh.fps, s, 1, bvh, notes))
+        return _checked(Motion(path, bvh.names, forward_kinematics(bvh) * _scale(path, s), bvh.fps, s, 1, bvh, notes))
     if path.suffix.lower() == ".c3d":  # markers, NaN at gaps, for marker models (`predict_markers`)
         rec = read_c3d(path)
         s = {"mm": 1e-3, "cm": 1e-2, "dm": 0.1, "m": 1.0}[rec.units]
@@ -81,14 +81,19 @@ def read_motion(path: str | Path, scale: float | None = None) -> Motion:
             raise DataError(path, f"'scale', 'fps' and 'up_axis' must be single numbers ({e})") from None
         if up is not None and up not in (0, 1, 2):
             raise DataError(path, f"'up_axis' must be 0, 1 or 2 (x, y or z), got {up:g}")
-        return _checked(Motion(path, names, pos * s, fps, s, None if up is None else int(up), None, [f"units: {s:g} m per unit"]))
+        return _checked(Motion(path, names, pos * _scale(path, s), fps, s, None if up is None else int(up), None, [f"units: {s:g} m per unit"]))
     raise DataError(path, "expected a .bvh clip, an .npz of joint positions or a .c3d marker file")
 
 
+def _scale(path: Path, s: float) -> float:
+    """Returns the scale `s` (metres per unit) once checked: a negative one would mirror the body."""
+    if not (np.isfinite(s) and s > 0):
+        raise DataError(path, f"scale must be a finite number of metres per unit > 0, got {s}")
+    return s
+
+
 def _checked(m: Motion, unique_names: bool = True) -> Motion:
-    """Returns `m` after checking what a file (or `--scale`) could make wrong without a parser noticing."""
-    if not (np.isfinite(m.scale) and m.scale > 0):  # a negative scale mirrors the body
-        raise DataError(m.path, f"scale must be a finite number of metres per unit > 0, got {m.scale}")
+    """Returns `m` after checking what a file could make wrong without a parser noticing."""
     if m.fps is not None and not (np.isfinite(m.fps) and m.fps > 0):
         raise DataError(m.path, f"frame rate must be a finite number > 0, got {m.fps}")
     if unique_names and m.names is not None:  # C3D labels are matched by `predict_markers.match_markers`
