@@ -19,6 +19,7 @@ import numpy as np  # noqa: E402
 from matplotlib.animation import FFMpegWriter, FuncAnimation, PillowWriter  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 
+from jaxmotion.formats.atomic import atomic_path  # noqa: E402
 from jaxmotion.viz import frames_to_joints, view_axes  # noqa: E402
 
 
@@ -124,8 +125,10 @@ def animate_futures(
         if not FFMpegWriter.isAvailable():
             plt.close(fig)
             raise RuntimeError(f"{path}: MP4 needs ffmpeg on PATH; write a .gif instead")
-        anim.save(path, writer=FFMpegWriter(fps=play_fps), dpi=dpi)
+        writer = FFMpegWriter(fps=play_fps)
     else:
-        anim.save(path, writer=PillowWriter(fps=play_fps), dpi=dpi)
+        writer = PillowWriter(fps=play_fps)
+    with atomic_path(path) as tmp:
+        anim.save(tmp, writer=writer, dpi=dpi)
     plt.close(fig)
     return path

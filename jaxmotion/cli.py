@@ -17,10 +17,41 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
+import math
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+from jaxmotion.errors import CheckpointError, ConfigError, DataError, RunFolderError, UsageError
+
+# What a user can cause and fix, each with a message naming the file, folder, field or option: printed as
+# one line, exit code 2 (`entry`). OSError: a missing file, a read-only folder, a full disk.
+USER_ERRORS = (DataError, ConfigError, CheckpointError, RunFolderError, UsageError, OSError)
+
+
+def _int_at_least(low: int):
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if v < low:
+            raise argparse.ArgumentTypeError(f"must be >= {low}, got {v}")
+        return v
+
+    parse.__name__ = f"integer >= {low}"
+    return parse
+
+
+def _positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
+    return v
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -36,7 +67,7 @@ def _parser() -> argparse.ArgumentParser:
         s.add_argument("--config", default=None, help="Python config file defining get_config() (default: built-in synthetic job)")
         s.add_argument("--data", default=None, help="'synthetic', a BVH folder, the Bandai-Namco-2 folder, or an H36M/HumanEva .npz")
         s.add_argument("--workdir", default=None, help="output directory (default: runs/<config name>)")
-        s.add_argument("--seed", type=int, default=None, help="override the config's seed (initialisation, batches, evaluation draws)")
+        s.add_argument("--seed", type=_int_at_least(0), default=None, help="override the config's seed (initialisation, batches, evaluation draws)")
         s.add_argument("--test-files", nargs="+", default=None, metavar="PATTERN",
                        help="a plain BVH folder's test files (glob patterns on path, name or stem); default: by subject, else the last 20%% of files")
         s.add_argument("--precision", choices=("float32", "bf16"), default=None,
@@ -47,8 +78,8 @@ def _parser() -> argparse.ArgumentParser:
         if name in ("run", "train", "eval"):
             _distributed_flags(s)
         if name == "sample":
-            s.add_argument("--window", type=int, default=0, help="test window index")
-            s.add_argument("--k", type=int, default=None, help="number of futures (default: largest K of the config; 10 with --fix-part)")
+            s.add_argument("--window", type=_int_at_least(0), default=0, help="test window index")
+            s.add_argument("--k", type=_int_at_least(1), default=None, help="number of futures (default: largest K of the config; 10 with --fix-part)")
             s.add_argument("--method", default=None, help="which sampler (default: the config's method; also cvae, zero_velocity)")
             s.add_argument("--fix-part", nargs="+", default=None, metavar="PART",
                            help="body-part control (GSPS): hold these parts' noise (lower | upper; with GSPSConfig.parts='five': "
@@ -58,12 +89,12 @@ def _parser() -> argparse.ArgumentParser:
     s = sub.add_parser("predict", help="K futures of your own clip (BVH or npz of joint positions) from a trained run")
     s.add_argument("run_dir", help="a trained work directory (with predictor.json)")
     s.add_argument("--input", required=True, help="a .bvh clip, an .npz with 'positions' (T, J, 3) [, 'names', 'fps', 'scale'], or a .c3d marker file (marker models)")
-    s.add_argument("--frame", type=int, default=None,
+    s.add_argument("--frame", type=_int_at_least(0), default=None,
                    help="input frame that ends the observed window (default: the last one whose whole future is in the clip, else the last frame)")
-    s.add_argument("--k", type=int, default=None, help="number of futures (default: the run's largest K)")
+    s.add_argument("--k", type=_int_at_least(1), default=None, help="number of futures (default: the run's largest K)")
     s.add_argument("--method", default=None, help="which predictor (default: the run's method)")
-    s.add_argument("--scale", type=float, default=None, help="metres per file unit (default: guessed for BVH, 1 for npz)")
-    s.add_argument("--seed", type=int, default=0, help="seed of the sampling key")
+    s.add_argument("--scale", type=_positive_float, default=None, help="metres per file unit (default: guessed for BVH, 1 for npz)")
+    s.add_argument("--seed", type=_int_at_least(0), default=0, help="seed of the sampling key")
     s.add_argument("--out", required=True, help="output folder: futures.npz, future_NN.bvh, samples.gif")
     s = sub.add_parser("view", help="one self-contained HTML page to browse test windows and their K futures in 3-D (needs plotly)")
     s.add_argument("run_dir", nargs="?", default=None, help="a trained work directory (default: --workdir, else runs/<config name>)")
@@ -72,10 +103,10 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--workdir", default=None, help="the trained work directory, as for sample (same as RUN_DIR)")
     s.add_argument("--test-files", nargs="+", default=None, metavar="PATTERN", help="a plain BVH folder's test files, as for sample")
     s.add_argument("--out", default=None, help="the HTML file (default: RUN_DIR/view.html)")
-    s.add_argument("--windows", type=int, default=6, help="how many test windows, the most multimodal first (default 6)")
-    s.add_argument("--k", type=int, default=10, help="futures per window (default 10)")
+    s.add_argument("--windows", type=_int_at_least(1), default=6, help="how many test windows, the most multimodal first (default 6)")
+    s.add_argument("--k", type=_int_at_least(1), default=10, help="futures per window (default 10)")
     s.add_argument("--method", default=None, help="which predictor (default: the run's method)")
-    s.add_argument("--seed", type=int, default=0, help="seed of the sampling key")
+    s.add_argument("--seed", type=_int_at_least(0), default=0, help="seed of the sampling key")
     return p
 
 
@@ -84,8 +115,8 @@ def _distributed_flags(s: argparse.ArgumentParser) -> None:
     g.add_argument("--distributed", action="store_true",
                    help="start jax.distributed; the settings below that are not given are detected (SLURM, Open MPI, Cloud TPU)")
     g.add_argument("--coordinator-address", default=None, metavar="HOST:PORT", help="process 0's address (default: $JAX_COORDINATOR_ADDRESS)")
-    g.add_argument("--num-processes", type=int, default=None, metavar="N", help="number of processes (default: $JAX_NUM_PROCESSES)")
-    g.add_argument("--process-id", type=int, default=None, metavar="I", help="this process, 0 .. N-1 (default: $JAX_PROCESS_ID)")
+    g.add_argument("--num-processes", type=_int_at_least(1), default=None, metavar="N", help="number of processes (default: $JAX_NUM_PROCESSES)")
+    g.add_argument("--process-id", type=_int_at_least(0), default=None, metavar="I", help="this process, 0 .. N-1 (default: $JAX_PROCESS_ID)")
 
 
 def _list_methods() -> int:
@@ -98,6 +129,8 @@ def _list_methods() -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Runs one command; a user's mistake is raised as one of `USER_ERRORS` (`predict` and `view` print it
+    and return 2), for `entry` to print as one line."""
     args = _parser().parse_args(argv)
     if args.command == "methods":
         return _list_methods()
@@ -105,14 +138,11 @@ def main(argv: list[str] | None = None) -> int:
         from jaxmotion.predict_file import predict_file
         from jaxmotion.predictor import load
 
-        from jaxmotion.errors import CheckpointError, DataError
-
         try:
             lines = predict_file(load(args.run_dir), args.input, args.out, frame=args.frame, k=args.k, method=args.method,
                                  seed=args.seed, scale=args.scale)
-        except (DataError, CheckpointError, FileNotFoundError) as e:  # the user's file or run: the message says it all
-            print(f"jaxmotion predict: {e}", file=sys.stderr)
-            return 2
+        except USER_ERRORS as e:  # the user's file or run: the message says it all
+            return _report(e, "jaxmotion predict")
         print("\n".join(lines))
         return 0
     if args.command == "view":
@@ -121,22 +151,45 @@ def main(argv: list[str] | None = None) -> int:
 
     if args.command in ("run", "train", "eval"):  # before anything runs on a device
         distributed.initialize(args.coordinator_address, args.num_processes, args.process_id, auto=args.distributed)
-    from jaxmotion import experiment
-    from jaxmotion.config import load_config, validate
+    from jaxmotion.config import load_config
 
     cfg = load_config(args.config)
-    if args.seed is not None or args.precision is not None:
-        import dataclasses
-
-        cfg = dataclasses.replace(cfg, seed=cfg.seed if args.seed is None else args.seed,
-                                  precision=args.precision or cfg.precision)
-    cfg = experiment.resolve(cfg)
+    source = args.config or "the default config"
+    cfg = _with_overrides(cfg, args, source)
     part_control = _part_control(cfg, args.method) if args.command == "sample" and args.fix_part else None
     workdir = Path(args.workdir or Path("runs") / cfg.name).absolute()
+    from jaxmotion.run_lock import run_lock
+
+    # One process at a time in a run folder (process 0 of a distributed job holds it for all).
+    with run_lock(workdir, args.command) if distributed.is_main() else contextlib.nullcontext():
+        return _run(args, cfg, workdir, part_control, source)
+
+
+def _with_overrides(cfg, args, source: str):
+    """Returns the config with --seed / --precision applied, checked, and its method's settings filled in."""
+    import dataclasses
+
+    from jaxmotion import experiment
+    from jaxmotion.config import validate
+
+    if args.seed is not None or args.precision is not None:
+        cfg = dataclasses.replace(cfg, seed=cfg.seed if args.seed is None else args.seed,
+                                  precision=args.precision or cfg.precision)
+        validate(cfg, source=source)
+    try:
+        return experiment.resolve(cfg)
+    except (TypeError, ValueError) as e:  # an unknown method, settings of another method's type
+        raise ConfigError(source, [str(e)]) from None
+
+
+def _run(args, cfg, workdir: Path, part_control, source: str) -> int:
+    from jaxmotion import distributed, experiment
+    from jaxmotion.config import validate
+
     t0 = time.perf_counter()
     ds = experiment.load_data(cfg, args.data, args.test_files)
     prep = experiment.prepare(ds, cfg.max_test_windows, cfg.train_sampler)
-    validate(cfg, prep.sampler.num_windows, source=args.config or "the default config")
+    validate(cfg, prep.sampler.num_windows, source=source)
     label = ds.name
     print(
         f"data: {ds.name}: {len(ds.train)} train / {len(ds.test)} test sequences, D={ds.dim}, "
@@ -163,10 +216,11 @@ def main(argv: list[str] | None = None) -> int:
         import jax.numpy as jnp
         import numpy as np
 
+        from jaxmotion.formats.atomic import savez_atomic
         from jaxmotion.viz import plot_futures
 
         if not 0 <= args.window < len(prep.windows):
-            raise SystemExit(f"--window must be in [0, {len(prep.windows)}), got {args.window}")
+            raise UsageError(f"--window must be in [0, {len(prep.windows)}), got {args.window}")
         if part_control is not None:
             print(_sample_fixed_parts(part_control, cfg, prep, params, args.window, args.k or 10, tuple(args.fix_part), workdir, label))
             return 0
@@ -179,7 +233,7 @@ def main(argv: list[str] | None = None) -> int:
         i = args.window
         preds = np.asarray(fn(jnp.asarray(prep.x[i : i + 1]), jax.random.key(cfg.seed)))[0]
         out = workdir / f"sample_w{i}_{args.method}_k{k}"
-        np.savez(out.with_suffix(".npz"), x=prep.x[i], y=prep.y[i], preds=preds)
+        savez_atomic(out.with_suffix(".npz"), x=prep.x[i], y=prep.y[i], preds=preds)
         plot_futures(prep.x[i], preds, prep.y[i], ds.skeleton.parents, out.with_suffix(".png"),
                      title=f"{label}: window {i}, {args.method}, K={k}")
         print(f"wrote {out}.npz and {out}.png")
@@ -190,11 +244,9 @@ def main(argv: list[str] | None = None) -> int:
 
 def _view(args) -> int:
     """`jaxmotion view`: writes the page (`jaxmotion.viewer.view_run`); a bad run, file or option is one line, exit code 2."""
-    from jaxmotion.errors import CheckpointError, DataError
-
     run_dir = args.run_dir or args.workdir
     if args.run_dir and args.workdir and Path(args.run_dir).absolute() != Path(args.workdir).absolute():
-        raise SystemExit(f"jaxmotion view: RUN_DIR {args.run_dir} and --workdir {args.workdir} differ; give one")
+        raise UsageError(f"RUN_DIR {args.run_dir} and --workdir {args.workdir} differ; give one")
     if run_dir is None:
         from jaxmotion.config import load_config
 
@@ -207,11 +259,9 @@ def _view(args) -> int:
     except ModuleNotFoundError as e:
         if e.name != "plotly":
             raise
-        print(f"jaxmotion view: {e}", file=sys.stderr)
-        return 2
-    except (DataError, CheckpointError, FileNotFoundError, ValueError) as e:  # the user's run or options: the message says it all
-        print(f"jaxmotion view: {e}", file=sys.stderr)
-        return 2
+        return _report(e, "jaxmotion view")
+    except (*USER_ERRORS, ValueError) as e:  # the user's run or options: the message says it all
+        return _report(e, "jaxmotion view")
     print("\n".join(lines))
     return 0
 
@@ -234,6 +284,7 @@ def _sample_fixed_parts(part_control, cfg, prep, params, i: int, k: int, fix: tu
     import jax
     import numpy as np
 
+    from jaxmotion.formats.atomic import savez_atomic
     from jaxmotion.viz import plot_futures
 
     ds = prep.dataset
@@ -244,7 +295,7 @@ def _sample_fixed_parts(part_control, cfg, prep, params, i: int, k: int, fix: tu
     spread = preds.reshape(k, ds.t_pred, -1, 3).std(axis=0).max(axis=(0, 2))  # per joint (root dropped), m
     held = spread < 1e-5  # identical up to float32 rounding
     out = workdir / f"sample_w{i}_{cfg.method}_k{k}_fix-{'-'.join(fix)}"
-    np.savez(out.with_suffix(".npz"), x=prep.x[i], y=prep.y[i], preds=preds, fix=np.asarray(fix), joint_spread=spread)
+    savez_atomic(out.with_suffix(".npz"), x=prep.x[i], y=prep.y[i], preds=preds, fix=np.asarray(fix), joint_spread=spread)
     plot_futures(prep.x[i], preds, prep.y[i], ds.skeleton.parents, out.with_suffix(".png"),
                  title=f"{cfg.method} part control: {', '.join(fix)} held, the rest varies ({label}: test window {i}, K={k})")
     names = [n for n, h in zip(ds.skeleton.names[1:], held) if h]
@@ -253,23 +304,78 @@ def _sample_fixed_parts(part_control, cfg, prep, params, i: int, k: int, fix: tu
             f"{spread[~held].max() if (~held).any() else 0.0:.3f} m")
 
 
-def entry() -> int:
-    """The console script: `main`, with the library's own user errors printed as one line (exit code 2).
+class _LateLoopTracebacksDropped:
+    """Stderr without the "RuntimeError: Event loop is closed" tracebacks of tensorstore's late reads.
 
-    A bad file, config or checkpoint is the user's to fix, and its message names what is wrong, so
-    the traceback through jaxmotion's internals is left out. `main` itself raises them (for tests
-    and for code that calls it).
+    When one array of a checkpoint fails to read, orbax's restore raises and closes its event loop,
+    but tensorstore finishes the other reads it started and hands each result to that closed loop
+    (`call_soon_threadsafe`); each prints a traceback from tensorstore's threads, 5-16 for a DLow run,
+    before and after the error's one line. Nobody waits for those reads. A traceback is held from its
+    header to its exception line, and dropped only when it is that one; everything else passes.
+    """
+
+    _HEADER = "Traceback (most recent call last):"
+
+    def __init__(self, stream):
+        import threading
+
+        self.stream, self._lock, self._held, self._owner = stream, threading.Lock(), None, None
+
+    def write(self, s: str) -> int:
+        import threading
+
+        me = threading.get_ident()
+        with self._lock:
+            if self._held is None or self._owner != me:
+                if not s.startswith(self._HEADER) or self._held is not None:
+                    return self.stream.write(s)
+                self._held, self._owner = "", me
+            self._held += s
+            lines = self._held.splitlines()
+            last = lines[-1] if self._held.endswith("\n") else ""
+            if last and not last.startswith((" ", self._HEADER)):  # the exception line: the traceback is whole
+                held, self._held = self._held, None
+                if not (last == "RuntimeError: Event loop is closed" and "call_soon_threadsafe" in held):
+                    self.stream.write(held)
+            return len(s)
+
+    def flush(self) -> None:
+        self.stream.flush()
+
+    def __getattr__(self, name):  # fileno, isatty, encoding ... of the real stream
+        return getattr(self.stream, name)
+
+
+def _report(e: BaseException, prog: str = "jaxmotion") -> int:
+    """Prints a user's error as one line on stderr; returns exit code 2."""
+    print(f"{prog}: error: {e}", file=sys.stderr, flush=True)
+    return 2
+
+
+def entry() -> int:
+    """The console script: `main`, with every error a user can cause printed as one line (exit code 2).
+
+    A bad file, config, checkpoint, run folder or option is the user's to fix, and its message names
+    what is wrong, so the traceback through jaxmotion's internals is left out (`USER_ERRORS`; a
+    `SystemExit` with a message is one too). `main` itself raises them (for tests and for code that
+    calls it). Tensorstore's late "Event loop is closed" tracebacks after a failed checkpoint restore
+    are dropped (`_LateLoopTracebacksDropped`), so the message is all a user sees.
     """
     from jaxmotion.hugepages import exec_with_hugepages
 
     exec_with_hugepages()  # once, before anything runs: large XLA buffers in 2 MiB pages (jaxmotion/hugepages.py)
-    from jaxmotion.errors import CheckpointError, ConfigError, DataError
-
+    sys.stderr = _LateLoopTracebacksDropped(sys.stderr)
     try:
         return main()
-    except (DataError, ConfigError, CheckpointError) as e:
-        print(f"jaxmotion: error: {e}", file=sys.stderr)
-        return 2
+    except USER_ERRORS as e:
+        return _report(e)
+    except SystemExit as e:
+        if isinstance(e.code, str):
+            return _report(e.code)
+        raise
+    except KeyboardInterrupt:
+        print("jaxmotion: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -8,10 +8,13 @@ impossible values are one `jaxmotion.errors.ConfigError` listing every problem.
 from __future__ import annotations
 
 import ast
+import contextlib
 import dataclasses
 import difflib
 import importlib.util
 import math
+import re
+import traceback
 import types
 import typing
 from pathlib import Path
@@ -20,7 +23,7 @@ from typing import Any
 from jaxmotion.errors import ConfigError
 
 
-@dataclasses.dataclass
+@dataclasses.dataclass(slots=True)  # slots: setting a misspelt attribute (`c.ckpt_evry = 7`) is an error, as in every method config
 class Config:
     """Everything `jaxmotion run/train/eval/sample` needs; defaults are the built-in synthetic job."""
 
@@ -92,18 +95,63 @@ def load_config(path: str | Path | None) -> Config:
         raise FileNotFoundError(f"config file not found: {path}")
     spec = importlib.util.spec_from_file_location(f"jaxmotion_config_{path.stem}", path)
     module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    if not hasattr(module, "get_config"):
-        raise ValueError(f"{path}: a config file must define get_config() -> jaxmotion.config.Config")
+    with _config_code(path, vars(module)):
+        spec.loader.exec_module(module)
+    if not callable(getattr(module, "get_config", None)):
+        raise ConfigError(str(path), ["a config file must define get_config() -> jaxmotion.config.Config"])
     # A dataclass rejects only the first unknown keyword; read the file to list them all.
     unknown = _unknown_fields(path, vars(module))
     if unknown:
         raise ConfigError(str(path), unknown)
-    cfg = module.get_config()
+    with _config_code(path, vars(module)):
+        cfg = module.get_config()
     if not isinstance(cfg, Config):
-        raise TypeError(f"{path}: get_config() returned {type(cfg).__name__}, expected jaxmotion.config.Config")
+        raise ConfigError(str(path), [f"get_config() returned a {type(cfg).__name__}, expected a jaxmotion.config.Config"])
     validate(cfg, source=str(path))
     return cfg
+
+
+@contextlib.contextmanager
+def _config_code(path: Path, namespace: dict):
+    """Turns an exception raised by the config file's own code into a `ConfigError` naming its line.
+
+    A misspelt attribute (`c.ckpt_evry = 7`) is an AttributeError, since the config dataclasses have
+    slots; the nearest field is suggested.
+    """
+    try:
+        yield
+    except ConfigError:
+        raise
+    except SyntaxError as e:
+        raise ConfigError(str(path), [f"line {e.lineno}: {e.msg}"]) from None
+    except Exception as e:
+        tb = traceback.extract_tb(e.__traceback__)
+        line = next((f.lineno for f in reversed(tb) if Path(f.filename).resolve() == path.resolve()), None)
+        where = f"line {line}: " if line is not None else ""
+        problem = f"{where}{type(e).__name__}: {e}"
+        m = re.fullmatch(r"'(\w+)' object has no attribute '(\w+)'", str(e)) if isinstance(e, AttributeError) else None
+        cls = m and _config_types(namespace).get(m[1])
+        if cls is not None:
+            names = [f.name for f in dataclasses.fields(cls)]
+            near = difflib.get_close_matches(m[2], names, n=1)
+            problem = f"{where}unknown field {m[2]!r} of {m[1]}" + (f"; did you mean {near[0]!r}?" if near else f"; fields: {names}")
+        raise ConfigError(str(path), [problem]) from None
+
+
+def _config_types(namespace: dict) -> dict[str, type]:
+    """Returns the config dataclasses by name: `Config`, every registered method's settings, the file's own, and their nested ones."""
+    from jaxmotion.methods import methods  # the registry imports the models, which import this module
+
+    todo = [Config, *(m.config_type for m in methods().values()), *(v for v in namespace.values() if isinstance(v, type))]
+    found: dict[str, type] = {}
+    while todo:
+        t = todo.pop()
+        if not (isinstance(t, type) and dataclasses.is_dataclass(t)) or t.__name__ in found:
+            continue
+        found[t.__name__] = t
+        with contextlib.suppress(Exception):
+            todo += typing.get_type_hints(t).values()
+    return found
 
 
 def _unknown_fields(path: Path, namespace: dict) -> list[str]:

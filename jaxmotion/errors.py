@@ -5,8 +5,9 @@
     except DataError as e:
         print(e.path, e.problem)     # the file, and what is wrong with it (frame, row, key)
 
-All three are `ValueError`s, so code that caught `ValueError` before still catches them. They are
-raised at the boundary (parsers, loaders, config loading, checkpoint restore), before any jitted code.
+All five are `ValueError`s, so code that caught `ValueError` before still catches them. They are
+raised at the boundary (parsers, loaders, config loading, checkpoint restore, run folders, command-line
+options), before any jitted code. The `jaxmotion` command prints any of them as one line, exit code 2.
 """
 
 from __future__ import annotations
@@ -39,3 +40,18 @@ class ConfigError(ValueError):
 
 class CheckpointError(ValueError):
     """A checkpoint that cannot be used (unreadable, truncated, written for another stage), or cannot be written."""
+
+
+class RunFolderError(ValueError):
+    """A run folder that cannot be used now: held by another process, or not writable: `path` and `problem`."""
+
+    def __init__(self, path: str | os.PathLike, problem: str):
+        self.path, self.problem = str(path), problem
+        super().__init__(f"{path}: {problem}")
+
+    def __reduce__(self):
+        return type(self), (self.path, self.problem)
+
+
+class UsageError(ValueError):
+    """A command-line option (or the function argument behind it) outside what it accepts; the message names it."""

@@ -32,6 +32,7 @@ from jaxmotion.data.synthetic import make_synthetic
 from jaxmotion.data.types import MotionDataset
 from jaxmotion.data.windows import SAMPLER_WEIGHTINGS, TrainSampler, canonicalise_windows, split_frames, test_windows
 from jaxmotion.errors import DataError
+from jaxmotion.formats.atomic import write_text_atomic
 from jaxmotion.method import Method, Predictor
 from jaxmotion.methods import get_method
 from jaxmotion.train import runner
@@ -429,8 +430,7 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
             records.append(rec)
             print(format_record(rec), flush=True)
     workdir.mkdir(parents=True, exist_ok=True)
-    with open(workdir / "metrics.json", "w") as f:
-        json.dump(records, f, indent=1, default=float)
+    write_text_atomic(workdir / "metrics.json", json.dumps(records, indent=1, default=float))
     return records
 
 

@@ -27,6 +27,7 @@ import numpy as np
 from jaxmotion.body.fit import calibrate, fit_sequence
 from jaxmotion.body.markersets import MARKER_SPECS
 from jaxmotion.body.skeleton import SkeletonBody, skeleton_body_from_bvh, toy_skeleton
+from jaxmotion.formats.atomic import atomic_path, write_text_atomic
 from jaxmotion.formats.bvh import read_bvh
 from jaxmotion.formats.c3d import read_c3d
 
@@ -112,7 +113,8 @@ def plot_fit(out: dict, png: str | Path, n_frames: int = 4) -> Path:
     fig.tight_layout()
     png = Path(png)
     png.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(png, dpi=90)
+    with atomic_path(png) as tmp:
+        fig.savefig(tmp, dpi=90)
     plt.close(fig)
     return png
 
@@ -132,7 +134,7 @@ def main(argv=None) -> None:
     print(json.dumps(stats))
     print(f"wrote {png}")
     if args.json:
-        Path(args.json).write_text(json.dumps(stats, indent=1))
+        write_text_atomic(args.json, json.dumps(stats, indent=1))
 
 
 if __name__ == "__main__":

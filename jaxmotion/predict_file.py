@@ -21,8 +21,9 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jaxmotion.errors import DataError
-from jaxmotion.formats.bvh import Bvh, forward_kinematics, guess_scale, read_bvh
+from jaxmotion.errors import DataError, UsageError
+from jaxmotion.formats.atomic import savez_atomic
+from jaxmotion.formats.bvh import MAX_JOINTS, Bvh, forward_kinematics, guess_scale, read_bvh
 from jaxmotion.formats.bvh_write import read_end_sites, write_bvh
 from jaxmotion.data.windows import resample  # noqa: F401 (also part of this module's interface)
 from jaxmotion.formats.c3d import read_c3d
@@ -54,11 +55,11 @@ def read_motion(path: str | Path, scale: float | None = None) -> Motion:
         bvh = read_bvh(path)
         s = guess_scale(bvh) if scale is None else scale
         notes = [f"units: {s:g} m per file unit ({'guessed from the skeleton' if scale is None else '--scale'})"]
-        return Motion(path, bvh.names, forward_kinematics(bvh) * s, bvh.fps, s, 1, bvh, notes)
+        return _checked(Motion(path, bvh.names, forward_kinematics(bvh) * _scale(path, s), bvh.fps, s, 1, bvh, notes))
     if path.suffix.lower() == ".c3d":  # markers, NaN at gaps, for marker models (`predict_markers`)
         rec = read_c3d(path)
         s = {"mm": 1e-3, "cm": 1e-2, "dm": 0.1, "m": 1.0}[rec.units]
-        return Motion(path, rec.labels, rec.points.astype(np.float64), rec.rate, s, None, None, [f"units: {rec.units} (POINT:UNITS)"])
+        return _checked(Motion(path, rec.labels, rec.points.astype(np.float64), rec.rate, s, None, None, [f"units: {rec.units} (POINT:UNITS)"]), unique_names=False)
     if path.suffix.lower() == ".npz":
         try:
             z = dict(np.load(path, allow_pickle=False))
@@ -72,11 +73,37 @@ def read_motion(path: str | Path, scale: float | None = None) -> Motion:
         names = tuple(str(n) for n in z["names"]) if "names" in z else None
         if names is not None and len(names) != pos.shape[1]:
             raise DataError(path, f"{len(names)} names for {pos.shape[1]} joints")
-        s = float(z["scale"]) if "scale" in z else (1.0 if scale is None else scale)
-        fps = float(z["fps"]) if "fps" in z else None
-        up = int(z["up_axis"]) if "up_axis" in z else None
-        return Motion(path, names, pos * s, fps, s, up, None, [f"units: {s:g} m per unit"])
+        try:
+            s = float(z["scale"]) if "scale" in z else (1.0 if scale is None else scale)
+            fps = float(z["fps"]) if "fps" in z else None
+            up = float(z["up_axis"]) if "up_axis" in z else None
+        except (TypeError, ValueError) as e:
+            raise DataError(path, f"'scale', 'fps' and 'up_axis' must be single numbers ({e})") from None
+        if up is not None and up not in (0, 1, 2):
+            raise DataError(path, f"'up_axis' must be 0, 1 or 2 (x, y or z), got {up:g}")
+        return _checked(Motion(path, names, pos * _scale(path, s), fps, s, None if up is None else int(up), None, [f"units: {s:g} m per unit"]))
     raise DataError(path, "expected a .bvh clip, an .npz of joint positions or a .c3d marker file")
+
+
+def _scale(path: Path, s: float) -> float:
+    """Returns the scale `s` (metres per unit) once checked: a negative one would mirror the body."""
+    if not (np.isfinite(s) and s > 0):
+        raise DataError(path, f"scale must be a finite number of metres per unit > 0, got {s}")
+    return s
+
+
+def _checked(m: Motion, unique_names: bool = True) -> Motion:
+    """Returns `m` after checking what a file could make wrong without a parser noticing."""
+    if m.fps is not None and not (np.isfinite(m.fps) and m.fps > 0):
+        raise DataError(m.path, f"frame rate must be a finite number > 0, got {m.fps}")
+    if unique_names and m.names is not None:  # C3D labels are matched by `predict_markers.match_markers`
+        seen = set()
+        twice = [n for n in m.names if n in seen or seen.add(n)]
+        if twice:  # joints are matched by name: which one is meant?
+            raise DataError(m.path, f"joint names used twice: {sorted(set(twice))}")
+    if m.positions.shape[1] > MAX_JOINTS:
+        raise DataError(m.path, f"{m.positions.shape[1]} joints, more than {MAX_JOINTS} (formats.bvh.MAX_JOINTS); not a body")
+    return m
 
 
 def match_joints(motion: Motion, joints: list[str]) -> np.ndarray:
@@ -114,6 +141,8 @@ def predict_file(
     `frame` defaults to the last frame whose full future is still in the clip (then the GIF shows the
     ground truth), or the clip's last frame when it is shorter than `t_his + t_pred`.
     """
+    if Path(out).exists() and not Path(out).is_dir():
+        raise UsageError(f"--out {out} is a file; give a folder (it receives futures.npz, future_NN.bvh, samples.gif)")
     lay = model.layout
     if lay["frames"] == "global":  # a marker model (MOJO on markers): labels, gaps, canonical frame
         return predict_markers(model, read_motion(path, scale), out, frame=frame, k=k, method=method, seed=seed, gif=gif)
@@ -131,13 +160,13 @@ def predict_file(
     fps_in, fps = motion.fps, lay["fps"]
     n_in = pos.shape[0]
     if frame is not None and not 0 <= frame < n_in:
-        raise ValueError(f"--frame must be in [0, {n_in}) for {motion.path} ({n_in} frames), got {frame}")
+        raise UsageError(f"--frame must be in [0, {n_in}) for {motion.path} ({n_in} frames), got {frame}")
     if fps_in is None:
         notes.append(f"frame rate: not in the file, taken as the model's {fps:g} fps")
         fps_in = fps
     ratio = fps / fps_in
     if abs(ratio - 1) > 0.01:
-        pos = resample(pos, fps_in, fps)
+        pos = resample(pos, fps_in, fps, str(motion.path))
         notes.append(
             f"frame rate: resampled from {fps_in:g} to {fps:g} fps by linear interpolation of joint positions "
             f"({n_in} -> {pos.shape[0]} frames); --frame counts input frames"
@@ -159,7 +188,7 @@ def predict_file(
     frames = (joints[:, 1:] - joints[:, :1]).reshape(n, -1).astype(np.float32)
     x = frames[end + 1 - t_his : end + 1]
     gt = frames[end + 1 : end + 1 + t_pred] if end + t_pred < n else None
-    k = k or model.default_k
+    k = model.default_k if k is None else k
     if method is None:
         method = model.main_method(k)
         if method != model.config.method:
@@ -172,14 +201,7 @@ def predict_file(
     root = joints[end, 0]
     fut_j = np.concatenate([np.zeros((k, t_pred, 1, 3)), futures.reshape(k, t_pred, -1, 3)], axis=2) + root
     obs_j = joints[end + 1 - t_his : end + 1]
-    np.savez(
-        out / "futures.npz", futures=futures, observed=x, ground_truth=gt if gt is not None else np.zeros((0,) + x.shape[1:]),
-        joints=fut_j.astype(np.float32), observed_joints=obs_j.astype(np.float32), names=np.array(lay["joints"]),
-        parents=np.array(lay["parents"]), fps=fps, t_his=t_his, t_pred=t_pred, method=method, k=k, end_frame=end,
-        input=str(motion.path), notes="\n".join(notes),
-    )
-    written = [out / "futures.npz"]
-    # Back to the input's world and units for the BVH files.
+    # Back to the input's world and units for the BVH files, all built before anything is written.
     to_file = lambda p: _roll(p, -shift) / motion.scale  # noqa: E731
     if motion.bvh is not None:
         template = dataclasses.replace(motion.bvh, frame_time=1.0 / fps)
@@ -189,7 +211,8 @@ def predict_file(
         end_sites = read_end_sites(motion.path)
         ref_motion = template.motion[min(ref, template.num_frames - 1)]
     else:
-        names, parents = tuple(lay["joints"]), tuple(lay["parents"])
+        names, parents, end_sites = tuple(lay["joints"]), tuple(lay["parents"]), None
+    bvhs = []
     for i in range(k):
         seq = to_file(np.concatenate([obs_j, fut_j[i]]))  # (t_his + t_pred, J_model, 3)
         if motion.bvh is not None:
@@ -197,11 +220,19 @@ def predict_file(
             targets[:, idx] = seq
             # Reference pose (twist, joints the model does not predict): the input's frame at the window's end.
             tpl = dataclasses.replace(template, motion=ref_motion[None])
-            fitted = fit_bvh(tpl, targets, known, reference_frame=0)
-            p = write_bvh(out / f"future_{i:02d}.bvh", fitted, end_sites)
+            try:
+                bvhs.append(fit_bvh(tpl, targets, known, reference_frame=0))
+            except ValueError as e:  # a joint that cannot rotate (CHANNELS 0) but must to follow the future
+                raise DataError(motion.path, f"the futures cannot be written on this skeleton ({e}); nothing was written") from None
         else:
-            p = write_bvh(out / f"future_{i:02d}.bvh", bvh_from_positions(names, parents, seq, fps, rest_frame=t_his - 1))
-        written.append(p)
+            bvhs.append(bvh_from_positions(names, parents, seq, fps, rest_frame=t_his - 1))
+    savez_atomic(
+        out / "futures.npz", futures=futures, observed=x, ground_truth=gt if gt is not None else np.zeros((0,) + x.shape[1:]),
+        joints=fut_j.astype(np.float32), observed_joints=obs_j.astype(np.float32), names=np.array(lay["joints"]),
+        parents=np.array(lay["parents"]), fps=fps, t_his=t_his, t_pred=t_pred, method=method, k=k, end_frame=end,
+        input=str(motion.path), notes="\n".join(notes),
+    )
+    written = [out / "futures.npz"] + [write_bvh(out / f"future_{i:02d}.bvh", b, end_sites) for i, b in enumerate(bvhs)]
     if gif:
         from jaxmotion.animate import animate_futures
 

@@ -28,7 +28,8 @@ import numpy as np
 
 from jaxmotion.body.markersets import MARKER_SPECS
 from jaxmotion.data.windows import resample
-from jaxmotion.errors import DataError
+from jaxmotion.errors import DataError, UsageError
+from jaxmotion.formats.atomic import savez_atomic
 from jaxmotion.predictor import MotionPredictor
 
 MAX_GAP_S = 0.1
@@ -135,7 +136,7 @@ def marker_window(motion, lay: dict, frame: int | None = None) -> MarkerWindow:
         notes.append(f"frame rate: not in the file, taken as the model's {fps:g} fps")
         fps_in = fps
     if frame is not None and not 0 <= frame < n_in:
-        raise ValueError(f"--frame must be in [0, {n_in}) for {motion.path} ({n_in} frames), got {frame}")
+        raise UsageError(f"--frame must be in [0, {n_in}) for {motion.path} ({n_in} frames), got {frame}")
     max_gap = int(round(MAX_GAP_S * fps_in))
     pos, filled = fill_gaps(raw, max_gap)
     gap_in = ~np.all(np.isfinite(pos), axis=-1)  # (n_in, M) what filling left, input frames
@@ -143,7 +144,7 @@ def marker_window(motion, lay: dict, frame: int | None = None) -> MarkerWindow:
         notes.append(f"gaps: {filled} marker samples in gaps of at most {max_gap} frames ({MAX_GAP_S:g} s) linearly interpolated")
     ratio = fps / fps_in
     if abs(ratio - 1) > 0.01:
-        pos = resample(pos, fps_in, fps)
+        pos = resample(pos, fps_in, fps, str(motion.path))
         notes.append(f"frame rate: resampled from {fps_in:g} to {fps:g} fps by linear interpolation ({n_in} -> {pos.shape[0]} frames); --frame counts input frames")
     else:
         ratio = 1.0
@@ -204,14 +205,14 @@ def predict_markers(
     fps, t_his, t_pred = lay["fps"], lay["t_his"], lay["t_pred"]
     markers = list(lay["joints"][1:])
     m = len(markers)
-    k = k or model.default_k
+    k = model.default_k if k is None else k
     if method is None:
         method = model.main_method(k)
     futures = model.predict(x, k, jax.random.key(seed), method)  # (K, t_pred, 3M) canonical frame
     world = futures.reshape(k, t_pred, m, 3) @ canon[:3] + canon[3]  # R^T q + o, input world in metres
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    np.savez(
+    savez_atomic(
         out / "futures.npz", futures=futures, observed=x, ground_truth=gt if gt is not None else np.zeros((0,) + x.shape[1:]),
         markers=world.astype(np.float32), observed_markers=w.observed.astype(np.float32), canon=canon.astype(np.float32),
         names=np.array(markers), fps=fps, t_his=t_his, t_pred=t_pred, method=method, k=k, end_frame=end,

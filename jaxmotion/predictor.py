@@ -15,7 +15,6 @@ data (which the methods' `stages` read to build their batches) is touched.
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import json
 import typing
 from pathlib import Path
@@ -27,7 +26,8 @@ import numpy as np
 
 from jaxmotion.config import Config, to_dict
 from jaxmotion.data.types import MotionDataset, Skeleton
-from jaxmotion.errors import CheckpointError
+from jaxmotion.errors import CheckpointError, ConfigError, UsageError
+from jaxmotion.formats.atomic import write_text_atomic
 
 MANIFEST = "predictor.json"
 VERSION = 1
@@ -79,10 +79,7 @@ def write_manifest(cfg: Config, ds: MotionDataset, workdir: str | Path, data: st
         "config": to_dict(cfg),
     }
     path = workdir / MANIFEST
-    tmp = path.with_name(MANIFEST + ".tmp")
-    tmp.write_text(json.dumps(manifest, indent=1, default=_json_default))
-    tmp.replace(path)
-    return path
+    return write_text_atomic(path, json.dumps(manifest, indent=1, default=_json_default))
 
 
 def _json_default(v):
@@ -100,8 +97,13 @@ def config_from_dict(d: dict) -> Config:
     mc = d.pop("method_config", None)
     cfg = _build(Config, {**d, "method_config": None})
     if type_name is not None and mc is not None:
-        module, _, name = type_name.rpartition(".")
-        cfg = dataclasses.replace(cfg, method_config=_build(getattr(importlib.import_module(module), name), mc))
+        # Only a registered method's settings type: a run folder from elsewhere names no module to import.
+        from jaxmotion.methods import methods
+
+        known = {f"{t.__module__}.{t.__name__}": t for t in (m.config_type for m in methods().values())}
+        if type_name not in known:
+            raise ConfigError("the run's config", [f"method_config_type {type_name!r} is not a registered method's settings type ({sorted(known)})"])
+        cfg = dataclasses.replace(cfg, method_config=_build(known[type_name], mc))
     return cfg
 
 
@@ -163,9 +165,12 @@ class MotionPredictor:
                 f"{path}: not found; {self.run_dir} is not a trained run (jaxmotion run / train write it), "
                 "or it was trained before predictor.json existed: `jaxmotion eval` on it writes it"
             )
-        self.manifest = json.loads(path.read_text())
-        self.layout = self.manifest["layout"]
-        self.config = config_from_dict(self.manifest["config"])
+        try:
+            self.manifest = json.loads(path.read_text())
+            self.layout = self.manifest["layout"]
+            self.config = config_from_dict(self.manifest["config"])
+        except (ValueError, KeyError, TypeError) as e:  # cut short, edited by hand, or another program's file
+            raise CheckpointError(f"{path}: unreadable ({type(e).__name__}: {e}); `jaxmotion eval` on the run writes it again") from None
         self.method = get_method(self.config.method)
         lay = self.layout
         self.skeleton = Skeleton(tuple(lay["joints"]), tuple(lay["parents"]))
@@ -231,7 +236,7 @@ class MotionPredictor:
         `x` is observed frames in `layout` (metres, root-relative, root dropped); `method` defaults to the
         run's own (`methods` lists the others), `k` to the config's largest K, `key` to `key(0)`.
         """
-        k = k or self.default_k
+        k = self.default_k if k is None else k
         x = np.asarray(x, np.float32)
         single = x.ndim == 2
         xb = x[None] if single else x
@@ -239,14 +244,21 @@ class MotionPredictor:
             raise ValueError(f"predict: x must be (t_his={self.t_his}, D={self.dim}) or (b, {self.t_his}, {self.dim}), got {x.shape}")
         if not np.all(np.isfinite(xb)):
             raise ValueError("predict: x holds NaN or inf")
+        if k < 1:
+            raise UsageError(f"predict: k (the number of futures) must be >= 1, got {k}")
         fns = self.predictors(k)
         method = method or self.main_method(k)
         if method not in fns:
-            raise ValueError(
+            raise UsageError(
                 f"predict: method {method!r} at K={k} is not available; available: {sorted(fns)} (a per-K network "
                 f"such as DLow's exists for the trained K in {tuple(self.config.eval_k)})"
             )
         out = np.asarray(fns[method](jnp.asarray(xb), jax.random.key(0) if key is None else key))
+        if not np.isfinite(out).all():  # never handed on (or written) as if they were futures
+            raise CheckpointError(
+                f"{self.run_dir}: the {method!r} futures of this input hold NaN or inf (the run's parameters are broken, "
+                "or the input is far outside what it was trained on); nothing was written"
+            )
         return out[0] if single else out
 
 

@@ -37,6 +37,7 @@ import numpy as np
 
 from jaxmotion import experiment, metrics
 from jaxmotion.errors import DataError
+from jaxmotion.formats.atomic import atomic_path
 from jaxmotion.predictor import MotionPredictor, run_config
 from jaxmotion.viz import frames_to_joints, view_axes
 
@@ -308,8 +309,9 @@ def write_page(fig: dict, path: str | Path) -> Path:
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    pio.write_html(fig, path, validate=False, include_plotlyjs=True, full_html=True, auto_play=False,
-                   config={"displaylogo": False, "responsive": True})
+    with atomic_path(path) as tmp:
+        pio.write_html(fig, tmp, validate=False, include_plotlyjs=True, full_html=True, auto_play=False,
+                       config={"displaylogo": False, "responsive": True})
     return path
 
 

@@ -10,6 +10,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from jaxmotion.formats.atomic import atomic_path  # noqa: E402
+
 
 def frames_to_joints(frames: np.ndarray) -> np.ndarray:
     """Returns `(..., J, 3)` joints from root-relative root-dropped frame vectors `(..., (J-1)*3)`."""
@@ -113,6 +115,7 @@ def plot_futures(
     fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=80)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=80)
     plt.close(fig)
     return path

@@ -15,8 +15,12 @@ def _encode_float(values, proc: int) -> bytes:
     return a.astype(">f4" if proc == 86 else "<f4").tobytes()
 
 
-def c3d_file(points: np.ndarray, residual: np.ndarray, labels: list[str], *, proc: int, scale: float, rate: float = 60.0) -> bytes:
-    """Returns a C3D file of `points (F, M, 3)` mm for processor `proc` (84 Intel, 85 DEC, 86 MIPS); int16 when `scale > 0`."""
+def c3d_file(points: np.ndarray, residual: np.ndarray, labels: list[str], *, proc: int, scale: float, rate: float = 60.0,
+             units: bytes = b"mm", pad: bytes = b" ") -> bytes:
+    """Returns a C3D file of `points (F, M, 3)` mm for processor `proc` (84 Intel, 85 DEC, 86 MIPS); int16 when `scale > 0`.
+
+    `units` is POINT:UNITS as stored (BTK's files: `b"mm\\x00\\x00"`); `pad` pads the labels to one width.
+    """
     e = ">" if proc == 86 else "<"
     f, m = points.shape[:2]
     w = max(len(s) for s in labels)
@@ -29,8 +33,8 @@ def c3d_file(points: np.ndarray, residual: np.ndarray, labels: list[str], *, pro
     section += param("USED", 2, (), struct.pack(e + "h", m)) + param("FRAMES", 2, (), struct.pack(e + "h", f))
     section += param("SCALE", 4, (), _encode_float([-abs(scale) if scale < 0 else scale], proc))
     section += param("RATE", 4, (), _encode_float([rate], proc)) + param("DATA_START", 2, (), struct.pack(e + "h", 4))
-    section += param("UNITS", -1, (2,), b"mm")
-    section += param("LABELS", -1, (w, m), b"".join(s.ljust(w).encode() for s in labels), last=True)
+    section += param("UNITS", -1, (len(units),), units)
+    section += param("LABELS", -1, (w, m), b"".join(s.encode().ljust(w, pad) for s in labels), last=True)
     hdr = bytearray(512)
     hdr[0], hdr[1] = 2, 0x50
     struct.pack_into(e + "hhhhh", hdr, 2, m, 0, 1, f, 0)

@@ -129,7 +129,9 @@ def _read_positions_3d(path: Path) -> dict:
     Read by hand rather than by `np.load`: `np.load` unpickles a file that is not a zip archive, and
     a pickle whose length field is corrupt allocates that length (up to 4 GB) before it finds the data
     missing. Here the pickle is first walked with `pickletools`, which checks every length against the
-    bytes there are.
+    bytes there are, then loaded by `_ArrayUnpickler`, which builds only arrays, dicts, lists, strings
+    and numbers: a pickle naming any other callable (a downloaded file's payload) is refused before it
+    is called.
     """
     if not path.is_file():
         raise FileNotFoundError(f"{path}: npz file not found")
@@ -150,7 +152,7 @@ def _read_positions_3d(path: Path) -> dict:
         for _ in pickletools.genops(fp):  # raises on a length past the end, before anything is allocated
             pass
         fp.seek(start)
-        obj = pickle.load(fp)
+        obj = _ArrayUnpickler(fp, path).load()
     except DataError:
         raise
     except Exception as e:  # zip, npy header, pickle and EOF errors from a corrupt or truncated file
@@ -159,6 +161,34 @@ def _read_positions_3d(path: Path) -> dict:
     if not isinstance(data, dict) or not all(isinstance(v, dict) for v in data.values()):
         raise DataError(path, "'positions_3d' must be a pickled dict {subject: {action: array}}")
     return data
+
+
+# What numpy's pickle of an object array of dicts of arrays names (numpy 1.x and 2.x module paths).
+_PICKLE_GLOBALS = frozenset(
+    [("numpy", "ndarray"), ("numpy", "dtype")]
+    + [(m, f) for m in ("numpy.core.multiarray", "numpy._core.multiarray") for f in ("_reconstruct", "scalar")]
+)
+
+
+class _ArrayUnpickler(pickle.Unpickler):
+    """`pickle.Unpickler` that resolves only numpy's array constructors (`_PICKLE_GLOBALS`).
+
+    Dicts, lists, tuples, strings and numbers are pickle opcodes and need no lookup; every other
+    object a pickle builds goes through `find_class` first, so a refused name is never imported or called.
+    """
+
+    def __init__(self, fp, path: Path):
+        super().__init__(fp)
+        self.path = path
+
+    def find_class(self, module: str, name: str):
+        if (module, name) not in _PICKLE_GLOBALS:
+            raise DataError(self.path, f"'positions_3d' names {module}.{name}, which a dict of arrays never does; "
+                                       "refused without running it (only numpy arrays, dicts, lists, strings and numbers are loaded)")
+        return super().find_class(module, name)
+
+    def persistent_load(self, pid):
+        raise DataError(self.path, "'positions_3d' holds a persistent reference, which a dict of arrays never does")
 
 
 def _npz_sequences(

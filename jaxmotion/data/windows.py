@@ -5,6 +5,12 @@ from __future__ import annotations
 import numpy as np
 
 from jaxmotion.data.types import Sequence
+from jaxmotion.errors import DataError
+
+# Resampling's bounds, checked before anything is allocated: a clip whose frame rate is absurd (a corrupt
+# header, a resource bomb) asks for millions of frames. An hour at 120 fps is 432,000 frames.
+MAX_RESAMPLED_FRAMES = 1_000_000
+MAX_RESAMPLE_BYTES = 1 << 30  # of float64 output: 1 GiB
 
 
 def to_frames(positions: np.ndarray, root: int = 0) -> np.ndarray:
@@ -139,8 +145,23 @@ test_starts.__test__ = False
 test_windows.__test__ = False
 
 
-def resample(positions: np.ndarray, fps_in: float, fps_out: float) -> np.ndarray:
-    """Returns `(T', ...)` positions at `fps_out` by linear interpolation in time over the same span (frame 0 kept)."""
+def resample(positions: np.ndarray, fps_in: float, fps_out: float, path: str = "positions") -> np.ndarray:
+    """Returns `(T', ...)` positions at `fps_out` by linear interpolation in time over the same span (frame 0 kept).
+
+    Raises `DataError` naming `path` when a rate is not a finite positive number or the result would pass
+    `MAX_RESAMPLED_FRAMES` or `MAX_RESAMPLE_BYTES`.
+    """
+    for name, fps in (("input", fps_in), ("output", fps_out)):
+        if not (np.isfinite(fps) and fps > 0):
+            raise DataError(path, f"{name} frame rate must be a finite number > 0, got {fps}")
+    n_in = positions.shape[0]
+    n_out = int(np.floor(max(n_in - 1, 0) / fps_in * fps_out + 1e-9)) + 1
+    size = n_out * int(np.prod(positions.shape[1:])) * 8
+    if n_out > MAX_RESAMPLED_FRAMES or size > MAX_RESAMPLE_BYTES:
+        raise DataError(
+            path, f"resampling {n_in} frames from {fps_in:g} to {fps_out:g} fps gives {n_out} frames ({size / 2**30:.2f} GiB); "
+            f"the limits are {MAX_RESAMPLED_FRAMES} frames and {MAX_RESAMPLE_BYTES / 2**30:g} GiB (is the file's frame rate right?)"
+        )
     t_in = np.arange(positions.shape[0]) / fps_in
     t_out = np.arange(0.0, t_in[-1] + 1e-9, 1.0 / fps_out)
     flat = positions.reshape(positions.shape[0], -1)

@@ -27,6 +27,11 @@ from jaxmotion.errors import DataError
 _POSITION_AXES = {"Xposition": 0, "Yposition": 1, "Zposition": 2}
 _ROTATION_AXES = {"Xrotation": 0, "Yrotation": 1, "Zrotation": 2}
 
+# Input limits, each a named error: a body has tens of joints (a few hundred with fingers and face), and
+# capture runs between 1 frame a minute and 100 kHz; beyond them a file is corrupt or a resource bomb.
+MAX_JOINTS = 1000
+FRAME_TIME_RANGE = (1e-5, 60.0)  # seconds
+
 # Skeletons whose units cannot be guessed from their size (see `guess_scale`).
 CMU_SCALE = 0.056444
 _KNOWN_SCALES = {frozenset({"Hips", "LHipJoint", "RHipJoint", "LowerBack"}): CMU_SCALE}
@@ -80,7 +85,7 @@ def read_bvh(path: str | os.PathLike) -> Bvh:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: BVH file not found")
-    text = path.read_text(encoding="utf-8", errors="replace")
+    text = path.read_text(encoding="utf-8", errors="replace").removeprefix("\ufeff")  # a byte-order mark some editors write
     lines = text.splitlines()
     stripped = [line.strip() for line in lines]
     try:
@@ -116,6 +121,7 @@ def _parse_hierarchy(path: Path, lines: list[str]):
     stack: list[int | None] = []
     expecting_brace = False
     pending: int | None = None
+    seen: dict[str, int] = {}  # joint name -> HIERARCHY line
     for n, line in enumerate(lines):
         if not line:
             continue
@@ -130,7 +136,13 @@ def _parse_hierarchy(path: Path, lines: list[str]):
             parent = -1 if key == "ROOT" else stack[-1]
             if parent is None:
                 raise DataError(path, f"{where}: JOINT inside an End Site")
-            names.append(" ".join(tokens[1:]))
+            name = " ".join(tokens[1:])
+            if name in seen:  # joints are looked up by name: a second one would silently win or lose
+                raise DataError(path, f"{where}: joint name {name!r} used twice (first at HIERARCHY line {seen[name]})")
+            seen[name] = n + 1
+            if len(names) == MAX_JOINTS:
+                raise DataError(path, f"{where}: more than {MAX_JOINTS} joints (MAX_JOINTS); not a body skeleton")
+            names.append(name)
             parents.append(parent)
             offsets.append([0.0, 0.0, 0.0])
             channels.append([])
@@ -203,9 +215,9 @@ def _parse_motion_header(path: Path, stripped: list[str], m0: int) -> tuple[int,
         raise DataError(path, f"expected 'Frame Time: dt' after 'Frames:', got {ft_line!r}") from None
     if num_frames < 0:
         raise DataError(path, f"negative frame count {num_frames}")
-    # 1e-6 s (1 MHz) is far above any capture rate; a smaller frame time is a corrupt header.
-    if not (1e-6 <= frame_time < 1e6):
-        raise DataError(path, f"Frame Time must be a positive number of seconds (1e-6 to 1e6), got {frame_time}")
+    lo, hi = FRAME_TIME_RANGE
+    if not (lo <= frame_time <= hi):
+        raise DataError(path, f"Frame Time must be a positive number of seconds ({lo:g} to {hi:g}: 100 kHz to 1 frame a minute), got {frame_time}")
     return num_frames, frame_time, ft_index + 1
 
 

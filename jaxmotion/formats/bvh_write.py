@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from jaxmotion.errors import DataError
+from jaxmotion.formats.atomic import write_text_atomic
 from jaxmotion.formats.bvh import _POSITION_AXES, Bvh
 
 POSITION_AXES = _POSITION_AXES  # BVH position channel name -> axis index
@@ -124,26 +125,37 @@ def write_bvh(path: str | os.PathLike, bvh: Bvh, end_sites: dict[int, np.ndarray
         raise ValueError(f"write_bvh: motion must be (F, {sum(len(c) for c in bvh.channels)}), got {bvh.motion.shape}")
     if not np.all(np.isfinite(bvh.motion)):
         raise DataError(path, "write_bvh: motion holds NaN or inf")
-    children = [[c for c in range(n) if bvh.parents[c] == j] for j in range(n)]
+    children: list[list[int]] = [[] for _ in range(n)]
+    for c, p in enumerate(bvh.parents):
+        if p >= 0:
+            children[p].append(c)
     end_sites = end_sites or {}
     fmt = lambda v: " ".join(f"{x:.{precision}f}" for x in v)  # noqa: E731
     out = ["HIERARCHY"]
 
-    def emit(j: int, depth: int) -> None:
-        pad = "\t" * depth
-        out.append(f"{pad}{'ROOT' if bvh.parents[j] < 0 else 'JOINT'} {bvh.names[j]}")
-        out.append(f"{pad}{{")
-        out.append(f"{pad}\tOFFSET {fmt(bvh.offsets[j])}")
-        if bvh.channels[j]:
-            out.append(f"{pad}\tCHANNELS {len(bvh.channels[j])} {' '.join(bvh.channels[j])}")
-        for c in children[j]:
-            emit(c, depth + 1)
-        if not children[j]:
-            out.append(f"{pad}\tEnd Site")
-            out.append(f"{pad}\t{{")
-            out.append(f"{pad}\t\tOFFSET {fmt(end_sites.get(j, np.zeros(3)))}")
-            out.append(f"{pad}\t}}")
-        out.append(f"{pad}}}")
+    def emit(root: int) -> None:
+        # Depth first with an explicit stack (a long chain of joints is no recursion limit); an int opens
+        # a joint, a string is a joint's closing lines.
+        todo: list[int | str] = [root]
+        depth = {root: 0}
+        while todo:
+            j = todo.pop()
+            if isinstance(j, str):
+                out.append(j)
+                continue
+            pad = "\t" * depth[j]
+            out.append(f"{pad}{'ROOT' if bvh.parents[j] < 0 else 'JOINT'} {bvh.names[j]}")
+            out.append(f"{pad}{{")
+            out.append(f"{pad}\tOFFSET {fmt(bvh.offsets[j])}")
+            if bvh.channels[j]:
+                out.append(f"{pad}\tCHANNELS {len(bvh.channels[j])} {' '.join(bvh.channels[j])}")
+            closing = f"{pad}}}"
+            if not children[j]:
+                closing = f"{pad}\tEnd Site\n{pad}\t{{\n{pad}\t\tOFFSET {fmt(end_sites.get(j, np.zeros(3)))}\n{pad}\t}}\n" + closing
+            todo.append(closing)
+            for c in reversed(children[j]):
+                depth[c] = depth[j] + 1
+                todo.append(c)
 
     for j, p in enumerate(bvh.parents):
         if p >= j:
@@ -156,9 +168,9 @@ def write_bvh(path: str | os.PathLike, bvh: Bvh, end_sites: dict[int, np.ndarray
         stack.extend(reversed(children[j]))
     if order != list(range(n)):
         raise ValueError("write_bvh: joints must be numbered depth first, as `read_bvh` numbers them")
-    emit(0, 0)
+    emit(0)
     out += ["MOTION", f"Frames: {bvh.num_frames}", f"Frame Time: {bvh.frame_time:.10f}"]
     out += [fmt(row) for row in bvh.motion]
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(out) + "\n")
+    write_text_atomic(path, "\n".join(out) + "\n")
     return path

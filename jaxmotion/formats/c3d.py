@@ -66,6 +66,11 @@ class C3D:
         return pts, msk
 
 
+def _text(raw: bytes) -> str:
+    """Returns a C3D string without its padding: spaces, or NULs as C writers (BTK's test files) leave them."""
+    return raw.decode("latin-1").strip(" \x00\t\r\n")
+
+
 def _dec_to_ieee(raw: np.ndarray) -> np.ndarray:
     """Returns IEEE float32 from DEC (VAX F) floats read as little-endian uint32."""
     swapped = ((raw & 0xFFFF) << 16) | (raw >> 16)
@@ -93,7 +98,7 @@ def _parse_parameters(path: Path, buf: bytes, start: int, endian: str, dec: bool
         if n == 0 or gid == 0:
             break
         n = abs(n)
-        name = buf[o + 2 : o + 2 + n].decode("latin-1").strip().upper()
+        name = _text(buf[o + 2 : o + 2 + n]).upper()
         p = o + 2 + n
         if p + 2 > len(buf):
             raise DataError(path, f"parameter {name!r} runs past the end of the file (truncated?)")
@@ -112,10 +117,10 @@ def _parse_parameters(path: Path, buf: bytes, start: int, endian: str, dec: bool
             data = buf[d : d + size]
             if t == -1:
                 if len(dims) <= 1:
-                    value = data.decode("latin-1").strip()
+                    value = _text(data)
                 else:
                     w = max(dims[0], 1)
-                    value = [data[i : i + w].decode("latin-1").strip() for i in range(0, len(data), w)]
+                    value = [_text(data[i : i + w]) for i in range(0, len(data), w)]
             elif t == 1:
                 value = np.frombuffer(data, np.int8).copy()
             elif t == 2:

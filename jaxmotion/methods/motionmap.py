@@ -410,6 +410,7 @@ def draw_pictures(cfg, prep, params: dict, workdir, i: int = 0) -> list:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from jaxmotion.formats.atomic import atomic_path
     from jaxmotion.viz import draw_pose, frames_to_joints, view_axes
 
     from pathlib import Path
@@ -441,7 +442,8 @@ def draw_pictures(cfg, prep, params: dict, workdir, i: int = 0) -> list:
     for a in axs:
         a.axis("off")
     paths = [workdir / "motionmap_maps.png"]
-    fig.savefig(paths[0], dpi=120, bbox_inches="tight")
+    with atomic_path(paths[0]) as tmp:
+        fig.savefig(tmp, dpi=120, bbox_inches="tight")
     plt.close(fig)
 
     n = int(valid.sum())
@@ -463,7 +465,8 @@ def draw_pictures(cfg, prep, params: dict, workdir, i: int = 0) -> list:
     ax.axis("off")
     ax.set_title(f"{ds.name} test window {i}: modes ranked by confidence, end poses; red: sigma per joint", fontsize=9)
     paths.append(workdir / "motionmap_modes.png")
-    fig.savefig(paths[1], dpi=120, bbox_inches="tight")
+    with atomic_path(paths[1]) as tmp:
+        fig.savefig(tmp, dpi=120, bbox_inches="tight")
     plt.close(fig)
     return paths
 

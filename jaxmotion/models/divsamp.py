@@ -49,7 +49,7 @@ DIVERSITY_KINDS = ("hinge", "exp")
 TEST_EPS_KINDS = ("shared", "independent")
 
 
-@dataclasses.dataclass
+@dataclasses.dataclass(slots=True)
 class DivSampConfig:
     """DivSamp's architecture and both training stages (`Config.method_config` of method "divsamp").
 

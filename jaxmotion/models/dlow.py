@@ -27,7 +27,7 @@ __all__ = ["CVAEConfig", "QConfig", "DLowConfig", "DLowCVAE", "DLowQ", "decode_k
            "cvae_loss", "dlow_loss"]
 
 
-@dataclasses.dataclass
+@dataclasses.dataclass(slots=True)
 class CVAEConfig:
     """DLow's CVAE stage (`h36m_nsamp50.yml`: nz 128, beta 0.1, lambda_v 1000, lr 1e-3, batch 64)."""
 
@@ -46,7 +46,7 @@ class CVAEConfig:
     dense_init: str = "torch"
 
 
-@dataclasses.dataclass
+@dataclasses.dataclass(slots=True)
 class QConfig:
     """DLow's Q-network stage (`h36m_nsamp50.yml`: d_scale 100, lambda_j 25, lambda_recon 2, lr 1e-4)."""
 
@@ -77,7 +77,7 @@ def _synthetic_q() -> QConfig:
     return QConfig(num_steps=250, batch_size=16, lr=5e-4)
 
 
-@dataclasses.dataclass
+@dataclasses.dataclass(slots=True)
 class DLowConfig:
     """DLow's settings (`Config.method_config` of method "dlow"): the CVAE stage and the Q stage (one Q network per K).
 

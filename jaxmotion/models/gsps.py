@@ -58,7 +58,7 @@ PART_SPLITS = ("lower_upper", "five")
 PART_NAMES = {"lower_upper": ("lower", "upper"), "five": ("torso", "right_leg", "left_leg", "right_arm", "left_arm")}
 
 
-@dataclasses.dataclass
+@dataclasses.dataclass(slots=True)
 class GSPSConfig:
     """GSPS's settings (`Config.method_config` of method "gsps"): the prior stage, the generator stage, the objective.
 

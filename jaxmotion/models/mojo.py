@@ -51,7 +51,7 @@ __all__ = ["MojoConfig", "MojoCVAE", "MojoQ", "DecodeCarry", "DecodeInputs", "de
            "sample_mojo", "cvae_loss", "q_loss", "decoder_params", "decode_inputs", "decode_step", "latent_spectrum"]
 
 
-@dataclasses.dataclass
+@dataclasses.dataclass(slots=True)
 class MojoConfig:
     """MOJO's settings (defaults: the paper / `amass_mojo_f9_nsamp50.yml`, GRU width as DLow here)."""
 

@@ -50,7 +50,7 @@ from jaxmotion.nn.mlp import MLP
 # Settings.
 
 
-@dataclasses.dataclass
+@dataclasses.dataclass(slots=True)
 class MotionMapConfig:
     """MotionMap's settings (`Config.method_config` of method "motionmap"); defaults: the synthetic job.
 

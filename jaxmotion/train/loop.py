@@ -3,7 +3,9 @@
 Checkpoints are written with orbax every `ckpt_every` steps and at the end (the last two are kept);
 `resume=True` continues from the newest one that restores: a truncated or half-written newest
 checkpoint is moved to `ckpt.unreadable/` (nothing is deleted) and training resumes from the one
-before it, with a warning naming both steps. The data stream is a function of `(seed, step)`, so a
+before it, with a warning naming both steps. Each checkpoint carries a checksum of its arrays
+(`CHECKSUM`, beside orbax's files); one whose arrays restore to other bytes, or to NaN/inf, is
+unreadable too. The data stream is a function of `(seed, step)`, so a
 resumed run sees exactly the batches, and logs exactly the lines, an uninterrupted run would have.
 
 The loop data-parallelises over a one-axis device mesh named "data" (`jaxmotion.distributed`): every
@@ -16,6 +18,7 @@ support), and only process 0 writes the log and shows the progress bar.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import math
 import os
@@ -262,7 +265,10 @@ def _save(mngr: ocp.CheckpointManager, ckpt: Path, step: int | None, state: Trai
     """
     try:
         if step is not None:
-            mngr.save(step, args=ocp.args.StandardSave(state.replace(frozen=None)), force=force)
+            saved = mngr.save(step, args=ocp.args.StandardSave(state.replace(frozen=None)), force=force)
+            if saved and distributed.is_main():
+                mngr.wait_until_finished()
+                write_text_atomic(ckpt / str(step) / CHECKSUM, json.dumps({"sha256": tree_digest(state.replace(frozen=None))}))
         if wait:
             mngr.wait_until_finished()
     except Exception as e:
@@ -275,7 +281,50 @@ def _save(mngr: ocp.CheckpointManager, ckpt: Path, step: int | None, state: Trai
         ) from e
 
 
+CHECKSUM = "jaxmotion_checksum.json"  # in each step folder: {"sha256": tree_digest(the saved state)}
+
+
+def tree_digest(tree) -> str:
+    """Returns a SHA-256 of the arrays of `tree` (dtype, shape, bytes), independent of the tree's structure.
+
+    Independent of the structure, so a checkpoint restored without a target (a dict, not a `TrainState`)
+    has the digest of the state that was saved: the sorted digests of the leaves, hashed.
+    """
+    leaves = []
+    for leaf in jax.tree.leaves(tree):
+        a = np.asarray(leaf.addressable_data(0) if isinstance(leaf, jax.Array) else leaf)  # replicated: one copy
+        leaves.append(hashlib.sha256(f"{a.dtype.str}{a.shape}".encode() + np.ascontiguousarray(a).tobytes()).hexdigest())
+    return hashlib.sha256("".join(sorted(leaves)).encode()).hexdigest()
+
+
+class CorruptCheckpoint(CheckpointError):
+    """A checkpoint that restores, but not to what was saved: what is wrong, without the folder."""
+
+
+def verify_restored(ckpt: Path, step: int, tree) -> None:
+    """Raises `CorruptCheckpoint` when checkpoint `step`'s restored arrays differ from its checksum or hold NaN/inf.
+
+    Orbax restores flipped bytes inside array data without complaint; the checksum written with the
+    checkpoint catches them. A checkpoint without one (written before checksums, or killed between
+    orbax's write and the checksum's) is checked for non-finite values only.
+    """
+    for path, leaf in jax.tree_util.tree_flatten_with_path(tree)[0]:
+        a = np.asarray(leaf.addressable_data(0) if isinstance(leaf, jax.Array) else leaf)
+        if np.issubdtype(a.dtype, np.inexact) and not np.isfinite(a).all():
+            raise CorruptCheckpoint(f"it restores non-finite values (NaN/inf) in {jax.tree_util.keystr(path)}")
+    file = ckpt / str(step) / CHECKSUM
+    if file.is_file():
+        try:
+            want = json.loads(file.read_text())["sha256"]
+        except (ValueError, KeyError, TypeError) as e:
+            raise CorruptCheckpoint(f"its checksum file {CHECKSUM} is unreadable ({_brief(e)})") from e
+        if tree_digest(tree) != want:
+            raise CorruptCheckpoint("its arrays restore to other bytes than were saved (checksum mismatch: corrupted on disk)")
+
+
 def _brief(e: BaseException) -> str:
+    if isinstance(e, CorruptCheckpoint):
+        return str(e)
     first = (str(e).strip().splitlines() or [""])[0]
     return f"{type(e).__name__}: {first[:240]}"
 
@@ -371,7 +420,11 @@ def restore_untargeted(ckpt: str | Path) -> tuple[int, Any]:
         step = mngr.latest_step()
         if step is None:
             raise CheckpointError(f"{ckpt}: no checkpoint; train this run first (jaxmotion train)")
-        return step, mngr.restore(step, args=ocp.args.StandardRestore(fallback_sharding=local_sharding()))
+        tree = mngr.restore(step, args=ocp.args.StandardRestore(fallback_sharding=local_sharding()))
+        verify_restored(ckpt, step, tree)
+        return step, tree
+    except CorruptCheckpoint as e:
+        raise CheckpointError(f"{ckpt}: checkpoint step {step} is unreadable: {e}") from e
     except CheckpointError:
         raise
     except Exception as e:
@@ -383,4 +436,5 @@ def restore_untargeted(ckpt: str | Path) -> tuple[int, Any]:
 def _restore(mngr: ocp.CheckpointManager, step: int, state: TrainState) -> TrainState:
     """Returns checkpoint `step` restored into the structure of `state`, with `state`'s frozen inputs."""
     restored = mngr.restore(step, args=ocp.args.StandardRestore(state.replace(frozen=None)))
+    verify_restored(Path(mngr.directory), step, restored)
     return restored.replace(frozen=state.frozen)
