@@ -220,6 +220,25 @@ def test_member_subsets_keep_one_member_per_cell_before_the_cap():
     assert np.mean(distinct) < 2.5
 
 
+def test_all_peaks_is_zero_velocity_then_every_valid_peak():
+    rng = np.random.default_rng(1)
+    b, p, t, d = 2, 4, 5, 6
+    futures = jnp.asarray(rng.normal(size=(b, p, t, d)), jnp.float32)
+    valid = jnp.asarray([[True, True, False, False], [True, False, False, False]])
+    modes = mm.Modes(futures, jnp.zeros((b, p)), jnp.zeros((b, p, t, 2)), jnp.zeros((b, p, 2), jnp.int32), valid, jnp.zeros((b, 8, 8)))
+    x = jnp.asarray(rng.normal(size=(b, 3, d)), jnp.float32)
+    out = np.asarray(mm.all_peaks(modes, x))
+    assert out.shape == (b, p + 1, t, d)
+    zv = np.broadcast_to(np.asarray(x)[:, None, -1:, :], (b, 1, t, d))
+    np.testing.assert_array_equal(out[:, :1], zv)
+    np.testing.assert_array_equal(out[0, 1:3], np.asarray(futures)[0, :2])
+    np.testing.assert_array_equal(out[1, 2:], np.broadcast_to(zv[1], (3, t, d)))
+    # ANP + 1: window 0 has 2 peaks, window 1 has 1.
+    assert mm.distinct_futures(out).tolist() == [3, 2]
+    with pytest.raises(ValueError, match="k_protocol"):
+        mm.MotionMapConfig(k_protocol="all")
+
+
 @pytest.mark.slow
 def test_predict_modes_shapes_and_select_k():
     dim, t_his, t_pred, size = 48, 15, 10, 16
@@ -260,7 +279,8 @@ def test_every_stage_trains_resumes_and_predicts_on_small_synthetic_data(tmp_pat
     ds = make_synthetic(0, num_train_subjects=2, train_sequences=2, train_segments=6, test_sequences=1, test_segments=3)
     prep = experiment.prepare(ds)
     c = mm.MotionMapConfig(nh_rnn=32, nh_fuse=32, nh_uncertainty=32, n_uncertainty_layers=2, hm_size=16,
-                           ae_steps=6, hm_steps=6, ft_steps=6, batch_size=8, tsne_fit_points=200)
+                           ae_steps=6, hm_steps=6, ft_steps=6, batch_size=8, tsne_fit_points=None, dedupe_members=True,
+                           k_protocol="release")
     cfg = Config(name="t", method="motionmap", action_metrics=False, method_config=c, eval_k=(6,), ckpt_every=3, log_every=3)
     method = experiment.get_method("motionmap")
     trained = runner.train(method, cfg, prep, tmp_path)
@@ -276,6 +296,9 @@ def test_every_stage_trains_resumes_and_predicts_on_small_synthetic_data(tmp_pat
     fns = method.predictors(cfg, ds, trained, 6)
     out = np.asarray(fns["motionmap"](jnp.asarray(prep.x[:4]), jax.random.key(0)))
     assert out.shape == (4, 6, ds.t_pred, ds.dim) and np.all(np.isfinite(out))
+    every = np.asarray(fns["motionmap_all_peaks"](jnp.asarray(prep.x[:4]), jax.random.key(0)))
+    assert every.shape == (4, c.max_peaks + 1, ds.t_pred, ds.dim)
+    np.testing.assert_array_equal(every[:, 0], np.repeat(prep.x[:4, -1:], ds.t_pred, axis=1))
     st = mmm.known_mode_statistics(cfg, prep, trained)
     assert st["true_modes_per_window"] == 6 and st["predicted_modes_mean"] >= 1
     assert len(mmm.draw_pictures(cfg, prep, trained, tmp_path)) == 2

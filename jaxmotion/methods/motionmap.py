@@ -197,7 +197,9 @@ def stages(cfg, prep) -> list[Stage]:
         m = pool.members(rng, j)
         return {"x": pool.x[j], "y": pool.targets(j, m)}
 
-    map_cells = {}  # the codebook's cell of every pool window, set when the heatmap stage starts (`hm_init`)
+    # The codebook's cell of every pool window, set when the heatmap stage starts (`hm_init`), before its
+    # first training batch; the shape check of the batches before any stage runs draws without it.
+    map_cells = {}
 
     def hm_init(key, frozen):
         map_cells["cells"] = np.asarray(frozen["codebook"]["cells"]) if c.dedupe_members else None
@@ -205,7 +207,7 @@ def stages(cfg, prep) -> list[Stage]:
 
     def hm_batches(rng):
         j = rng.integers(0, len(pool.windows), c.batch_size)
-        members, mask = pool.member_subsets(rng, j, c.max_members, map_cells["cells"])
+        members, mask = pool.member_subsets(rng, j, c.max_members, map_cells.get("cells"))
         return {"x": pool.x[j], "members": members, "mask": mask}
 
     def ft_batches(rng):
@@ -335,10 +337,18 @@ def near_mode_fn(cfg, ds, params: dict, *, k: int, radius: float):
 def predictors(cfg, ds, params: dict, k: int) -> dict:
     """Returns jitted `(x, key) -> (b, K, t_pred, D)` samplers: zero-velocity and MotionMap's top-K modes."""
     modes = modes_fn(cfg, ds, params)
-    return {
+    out = {
         "zero_velocity": zero_velocity(ds.t_pred, k),
         "motionmap": jax.jit(lambda x, key: mm.select_k(modes(x), k)),
     }
+    if settings(cfg).k_protocol == "release":  # the same futures at every K: all peaks and zero-velocity
+        out["motionmap_all_peaks"] = jax.jit(lambda x, key: mm.all_peaks(modes(x), x))
+    return out
+
+
+def _distinct(ds, pred, y) -> dict:
+    """`Method.extra_metrics`: the number of different futures among a window's samples (ANP + 1 for `motionmap_all_peaks`)."""
+    return {"distinct_futures": mm.distinct_futures(pred).astype(np.float64)}
 
 
 def known_mode_statistics(cfg, prep, params: dict, threshold: float | None = None, batch: int = 64) -> dict:
@@ -477,6 +487,7 @@ METHOD = Method(
     stages=stages,
     predictors=predictors,
     reference_futures="train",
+    extra_metrics=_distinct,
     pictures=draw_pictures,
     description="MotionMap (Hosseininejad, Shukla et al., CVPR 2025): heatmap over futures, modes ranked by confidence",
 )

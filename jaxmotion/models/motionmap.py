@@ -82,6 +82,10 @@ class MotionMapConfig:
     tsne_fit_points: int | None = 2000  # the strided subset openTSNE is fitted on (None: every training window, no transform)
     tsne_perplexity_fit: float = 100.0
     tsne_perplexity_transform: float = 20.0
+    # "top_k" (ours): K futures, the top-K peaks repeated in confidence order when fewer. "release"
+    # adds the predictor `motionmap_all_peaks`: the zero-velocity future and every peak (`all_peaks`),
+    # with `distinct_futures` (its ANP plus one) in the records.
+    k_protocol: str = "top_k"
     peak_min_distance: int = 5  # release `peak_interval`
     peak_threshold_rel: float = 0.35
     max_peaks: int = 49
@@ -94,6 +98,8 @@ class MotionMapConfig:
     mm_cache_dir: str | None = None  # where MM ground-truth sets are cached (None: not cached)
 
     def __post_init__(self):
+        if self.k_protocol not in ("top_k", "release"):
+            raise ValueError(f"MotionMapConfig.k_protocol must be 'top_k' or 'release', got {self.k_protocol!r}")
         if self.dense_init not in DENSE_INITS:
             raise ValueError(f"MotionMapConfig.dense_init must be one of {DENSE_INITS}, got {self.dense_init!r}")
 
@@ -447,6 +453,25 @@ def select_k(modes: Modes, k: int) -> Float[Array, "b k t d"]:
     """Returns K futures per window: the top-K modes by confidence, repeated in confidence order when fewer (`top_k_slots`)."""
     slots = top_k_slots(modes.valid, k)
     return jnp.take_along_axis(modes.futures, slots[..., None, None], axis=1)
+
+
+def all_peaks(modes: Modes, x: Float[Array, "b t_his d"]) -> Float[Array, "b q t d"]:
+    """Returns the release's K protocol: the zero-velocity future, then every valid peak's future (`q = max_peaks + 1`).
+
+    The release scores a window on a variable set, the zero-velocity future and all its peaks, and
+    reports the average number of peaks (ANP). Padding slots repeat the zero-velocity future, so
+    every min-over-samples metric (ADE, FDE, MMADE, MMFDE) equals the release's on its variable set;
+    APD and the medians over samples are not part of that protocol.
+    """
+    b, _, t, d = modes.futures.shape
+    zv = jnp.broadcast_to(x[:, None, -1:, :], (b, 1, t, d))
+    return jnp.concatenate([zv, jnp.where(modes.valid[..., None, None], modes.futures, zv)], axis=1)
+
+
+def distinct_futures(pred: Float[np.ndarray, "n k t d"]) -> Int[np.ndarray, " n"]:
+    """Returns how many different futures each window's K samples hold (equal bits count once)."""
+    p = np.asarray(pred).reshape(pred.shape[0], pred.shape[1], -1)
+    return np.asarray([np.unique(w, axis=0).shape[0] for w in p])
 
 
 # --------------------------------------------------------------------------------------------
