@@ -8,7 +8,9 @@
     jaxmotion sample --config CFG [--workdir DIR] --window 3 --k 50 --method dlow
     jaxmotion sample --config experiments/configs/gsps_synthetic.py --window 208 --fix-part lower   # one lower body, 10 upper bodies
     jaxmotion methods                               # the registered methods and their stages' settings type
-    jaxmotion predict RUN_DIR --input clip.bvh [--frame F] [--k K] [--method M] --out DIR   # your own motion
+    jaxmotion predict --model bandai clip.bvh --out DIR     # your own motion, the shipped model (no training)
+    jaxmotion predict RUN_DIR --input clip.bvh [--frame F] [--k K] [--method M] [--joint-map FILE] --out DIR
+    jaxmotion export RUN_DIR --out model.msgpack             # one inference-only file for load / predict --model
     jaxmotion view RUN_DIR [--out FILE.html] [--windows N] [--k K] [--method M]   # a 3-D viewer page (plotly)
 """
 
@@ -55,16 +57,23 @@ def _parser() -> argparse.ArgumentParser:
                                 "torso right_leg left_leg right_arm left_arm) and vary the rest. The first part predicted "
                                 "(lower) is then identical across the K samples; a later one still follows the varying earlier parts")
     sub.add_parser("methods", help="list the registered methods")
-    s = sub.add_parser("predict", help="K futures of your own clip (BVH or npz of joint positions) from a trained run")
-    s.add_argument("run_dir", help="a trained work directory (with predictor.json)")
-    s.add_argument("--input", required=True, help="a .bvh clip, an .npz with 'positions' (T, J, 3) [, 'names', 'fps', 'scale'], or a .c3d marker file (marker models)")
+    s = sub.add_parser("predict", help="K futures of your own clip (BVH or npz of joint positions) from a trained or shipped model")
+    s.add_argument("paths", nargs="*", metavar="[RUN_DIR] CLIP",
+                   help="a trained work directory or exported model file, then the clip (without --model); the clip (with --model)")
+    s.add_argument("--model", default=None, help="a shipped model ('bandai': DLow on Bandai-Namco-2), an exported file, or a run directory")
+    s.add_argument("--input", default=None, help="the clip: a .bvh clip, an .npz with 'positions' (T, J, 3) [, 'names', 'fps', 'scale'], or a .c3d marker file (marker models)")
     s.add_argument("--frame", type=int, default=None,
                    help="input frame that ends the observed window (default: the last one whose whole future is in the clip, else the last frame)")
     s.add_argument("--k", type=int, default=None, help="number of futures (default: the run's largest K)")
     s.add_argument("--method", default=None, help="which predictor (default: the run's method)")
     s.add_argument("--scale", type=float, default=None, help="metres per file unit (default: guessed for BVH, 1 for npz)")
+    s.add_argument("--joint-map", default=None, metavar="FILE",
+                   help='JSON {"model joint": "file joint"} (default: same names, else a built-in map: CMU, Mixamo, LAFAN1, SMPL, Bandai-Namco)')
     s.add_argument("--seed", type=int, default=0, help="seed of the sampling key")
     s.add_argument("--out", required=True, help="output folder: futures.npz, future_NN.bvh, samples.gif")
+    s = sub.add_parser("export", help="write a trained run as one inference-only model file (for jaxmotion.load and predict --model)")
+    s.add_argument("run_dir", help="a trained work directory (with predictor.json)")
+    s.add_argument("--out", required=True, help="the model file to write (e.g. model.msgpack)")
     s = sub.add_parser("view", help="one self-contained HTML page to browse test windows and their K futures in 3-D (needs plotly)")
     s.add_argument("run_dir", nargs="?", default=None, help="a trained work directory (default: --workdir, else runs/<config name>)")
     s.add_argument("--config", default=None, help="config file that rebuilds the test windows (default: the run's own, from predictor.json)")
@@ -102,18 +111,17 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "methods":
         return _list_methods()
     if args.command == "predict":
-        from jaxmotion.predict_file import predict_file
-        from jaxmotion.predictor import load
-
-        from jaxmotion.errors import CheckpointError, DataError
+        return _predict(args)
+    if args.command == "export":
+        from jaxmotion.errors import CheckpointError
+        from jaxmotion.predictor import export
 
         try:
-            lines = predict_file(load(args.run_dir), args.input, args.out, frame=args.frame, k=args.k, method=args.method,
-                                 seed=args.seed, scale=args.scale)
-        except (DataError, CheckpointError, FileNotFoundError) as e:  # the user's file or run: the message says it all
-            print(f"jaxmotion predict: {e}", file=sys.stderr)
+            path = export(args.run_dir, args.out)
+        except (CheckpointError, FileNotFoundError) as e:
+            print(f"jaxmotion export: {e}", file=sys.stderr)
             return 2
-        print("\n".join(lines))
+        print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB): jaxmotion predict --model {path} CLIP --out DIR")
         return 0
     if args.command == "view":
         return _view(args)
@@ -185,6 +193,30 @@ def main(argv: list[str] | None = None) -> int:
         print(f"wrote {out}.npz and {out}.png")
     else:
         print(f"checkpoints: {workdir}  total {time.perf_counter() - t0:.0f}s")
+    return 0
+
+
+def _predict(args) -> int:
+    """`jaxmotion predict`: the model from --model or the first path, the clip from --input or the last path."""
+    from jaxmotion.errors import CheckpointError, DataError
+    from jaxmotion.joint_maps import read_joint_map
+    from jaxmotion.predict_file import predict_file
+    from jaxmotion.predictor import load
+
+    paths = list(args.paths)
+    model = args.model if args.model is not None else (paths.pop(0) if paths else None)
+    clip = args.input if args.input is not None else (paths.pop(0) if paths else None)
+    if model is None or clip is None or paths:
+        raise SystemExit("jaxmotion predict: give a model (--model NAME|FILE, or a run directory) and one clip, e.g. "
+                         "jaxmotion predict --model bandai clip.bvh --out futures/")
+    try:
+        joint_map = read_joint_map(args.joint_map) if args.joint_map else None
+        lines = predict_file(load(model), clip, args.out, frame=args.frame, k=args.k, method=args.method,
+                             seed=args.seed, scale=args.scale, joint_map=joint_map)
+    except (DataError, CheckpointError, FileNotFoundError) as e:  # the user's file or run: the message says it all
+        print(f"jaxmotion predict: {e}", file=sys.stderr)
+        return 2
+    print("\n".join(lines))
     return 0
 
 

@@ -5,12 +5,18 @@
 `read_motion` reads a BVH clip (forward kinematics, units guessed as `formats.bvh.guess_scale` does
 unless `scale` is given) or an npz of joint positions (`positions` (T, J, 3), optional `names`,
 `fps`, `scale` (metres per unit, default 1), `up_axis`), or a C3D marker file (labels without
-the `Subject:` prefix, metres, NaN at gaps: a marker model's input, `predict_markers`). `to_layout`
-matches joints by name (an error lists the missing and the extra joints), converts to metres,
-turns the up axis onto the model's, resamples a different frame rate by linear interpolation of
-joint positions and makes frames root-relative with the root dropped. `predict_file` writes `futures.npz`, one BVH per future on the
-input's own skeleton (`retarget.fit_bvh`: the observed frames, then the future, the root held at
-its last observed place since the models predict root-relative motion) and `samples.gif`.
+the `Subject:` prefix, metres, NaN at gaps: a marker model's input, `predict_markers`). `predict_file`
+converts to metres, turns the up axis onto the model's, resamples a different frame rate by linear interpolation of
+joint positions and makes frames root-relative with the root dropped. Joints are matched by
+`joint_maps.match_skeleton`: a `--joint-map`, the same names, or a built-in convention (CMU,
+Mixamo, LAFAN1, SMPL, Bandai-Namco), the file's hierarchy checked against the model's.
+
+`predict_file` puts every future on the input's own skeleton (`retarget.fit_bvh`: the observed
+frames, then the future, the root held at its last observed place since the models predict
+root-relative motion; each joint's rotation points its bones along the predicted ones) and writes
+one BVH per future, `futures.npz` and `samples.gif`, all three showing that motion: `futures` and
+`joints` in the npz are the forward kinematics of the BVH files (the input's bone lengths), and
+`futures_raw` / `joints_raw` the model's output as it came.
 """
 
 from __future__ import annotations
@@ -26,6 +32,7 @@ from jaxmotion.formats.bvh import Bvh, forward_kinematics, guess_scale, read_bvh
 from jaxmotion.formats.bvh_write import read_end_sites, write_bvh
 from jaxmotion.data.windows import resample  # noqa: F401 (also part of this module's interface)
 from jaxmotion.formats.c3d import read_c3d
+from jaxmotion.joint_maps import match_skeleton
 from jaxmotion.predict_markers import predict_markers
 from jaxmotion.predictor import MotionPredictor
 from jaxmotion.retarget import bvh_from_positions, fit_bvh
@@ -79,8 +86,9 @@ def read_motion(path: str | Path, scale: float | None = None) -> Motion:
     raise DataError(path, "expected a .bvh clip, an .npz of joint positions or a .c3d marker file")
 
 
-def match_joints(motion: Motion, joints: list[str]) -> np.ndarray:
-    """Returns the input joint index of each model joint, or raises `DataError` listing the missing and extra joints."""
+def match_joints(motion: Motion, joints: list[str], parents: list[int] | None = None, joint_map: dict[str, str] | None = None) -> np.ndarray:
+    """Returns the input joint index of each model joint (`joint_maps.match_skeleton`: a joint map, the names, or a built-in
+    convention; the BVH's hierarchy checked against `parents`), or raises `DataError` saying what differs."""
     if motion.names is None:
         if motion.positions.shape[1] != len(joints):
             raise DataError(
@@ -89,16 +97,14 @@ def match_joints(motion: Motion, joints: list[str]) -> np.ndarray:
             )
         motion.notes.append("joints: unnamed, taken in the model's order")
         return np.arange(len(joints))
-    missing = [n for n in joints if n not in motion.names]
-    extra = [n for n in motion.names if n not in joints]
-    if missing:
-        raise DataError(
-            motion.path, f"skeleton does not match the model's: missing joints {missing}; extra joints {extra} "
-            f"(the model has {len(joints)} joints: {joints})"
-        )
+    file_parents = motion.bvh.parents if motion.bvh is not None and parents is not None else None
+    mapping, how = match_skeleton(joints, parents, motion.names, file_parents, joint_map, where=motion.path)
+    if how != "joints: matched by name":
+        motion.notes.append(how)
+    extra = [n for n in motion.names if n not in mapping.values()]
     if extra:
         motion.notes.append(f"joints: {len(extra)} not in the model ignored ({extra})")
-    return np.array([motion.names.index(n) for n in joints])
+    return np.array([motion.names.index(mapping[n]) for n in joints])
 
 
 def _roll(p: np.ndarray, shift: int) -> np.ndarray:
@@ -108,6 +114,7 @@ def _roll(p: np.ndarray, shift: int) -> np.ndarray:
 def predict_file(
     model: MotionPredictor, path: str | Path, out: str | Path, *, frame: int | None = None, k: int | None = None,
     method: str | None = None, seed: int = 0, scale: float | None = None, gif: bool = True,
+    joint_map: dict[str, str] | None = None,
 ) -> list[str]:
     """Writes the K futures of the window of `path` ending at input frame `frame` to `out`; returns the lines to print.
 
@@ -120,7 +127,7 @@ def predict_file(
     if lay["frames"] != "root_relative":
         raise DataError(path, f"the model predicts {lay['frames']} frames; predict from a file supports joint and marker models")
     motion = read_motion(path, scale)
-    idx = match_joints(motion, lay["joints"])
+    idx = match_joints(motion, lay["joints"], lay["parents"], joint_map)
     pos = motion.positions
     notes = motion.notes
     shift = 0
@@ -165,48 +172,59 @@ def predict_file(
         if method != model.config.method:
             notes.append(f"method: {model.config.method!r} has no predictor at K={k} (trained K: {tuple(model.config.eval_k)}); using {method!r}")
     futures = model.predict(x, k, jax.random.key(seed), method)  # (K, t_pred, D)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
 
     # World joint positions of observed + future frames, the root held at its last observed place.
     root = joints[end, 0]
-    fut_j = np.concatenate([np.zeros((k, t_pred, 1, 3)), futures.reshape(k, t_pred, -1, 3)], axis=2) + root
+    raw_j = np.concatenate([np.zeros((k, t_pred, 1, 3)), futures.reshape(k, t_pred, -1, 3)], axis=2) + root
     obs_j = joints[end + 1 - t_his : end + 1]
-    np.savez(
-        out / "futures.npz", futures=futures, observed=x, ground_truth=gt if gt is not None else np.zeros((0,) + x.shape[1:]),
-        joints=fut_j.astype(np.float32), observed_joints=obs_j.astype(np.float32), names=np.array(lay["joints"]),
-        parents=np.array(lay["parents"]), fps=fps, t_his=t_his, t_pred=t_pred, method=method, k=k, end_frame=end,
-        input=str(motion.path), notes="\n".join(notes),
-    )
-    written = [out / "futures.npz"]
-    # Back to the input's world and units for the BVH files.
-    to_file = lambda p: _roll(p, -shift) / motion.scale  # noqa: E731
+    to_file = lambda p: _roll(p, -shift) / motion.scale  # noqa: E731  (the input's world and units)
+    from_file = lambda p: _roll(p * motion.scale, shift)  # noqa: E731
     if motion.bvh is not None:
         template = dataclasses.replace(motion.bvh, frame_time=1.0 / fps)
         known = np.zeros(template.num_joints, bool)
         known[idx] = True
-        ref = int(round(end / ratio))
-        end_sites = read_end_sites(motion.path)
-        ref_motion = template.motion[min(ref, template.num_frames - 1)]
-    else:
-        names, parents = tuple(lay["joints"]), tuple(lay["parents"])
+        # Reference pose (twist, joints the model does not predict): the input's frame at the window's end.
+        ref_motion = template.motion[min(int(round(end / ratio)), template.num_frames - 1)]
+        tpl = dataclasses.replace(template, motion=ref_motion[None])
+    fitted, kept = [], []
     for i in range(k):
-        seq = to_file(np.concatenate([obs_j, fut_j[i]]))  # (t_his + t_pred, J_model, 3)
+        seq = to_file(np.concatenate([obs_j, raw_j[i]]))  # (t_his + t_pred, J_model, 3)
         if motion.bvh is not None:
             targets = np.zeros((seq.shape[0], template.num_joints, 3))
             targets[:, idx] = seq
-            # Reference pose (twist, joints the model does not predict): the input's frame at the window's end.
-            tpl = dataclasses.replace(template, motion=ref_motion[None])
-            fitted = fit_bvh(tpl, targets, known, reference_frame=0)
-            p = write_bvh(out / f"future_{i:02d}.bvh", fitted, end_sites)
-        else:
-            p = write_bvh(out / f"future_{i:02d}.bvh", bvh_from_positions(names, parents, seq, fps, rest_frame=t_his - 1))
-        written.append(p)
+            b = fit_bvh(tpl, targets, known, reference_frame=0)
+            kept.append(from_file(forward_kinematics(b)[:, idx]))
+        else:  # the skeleton of the last observed frame
+            b = bvh_from_positions(tuple(lay["joints"]), tuple(lay["parents"]), seq, fps, rest_frame=t_his - 1)
+            kept.append(from_file(forward_kinematics(b)))
+        fitted.append(b)
+    # What the BVH files show: the predicted bone directions on the input's bone lengths (`retarget.fit_bvh`).
+    kept_j = np.stack(kept)[:, t_his:]  # (K, t_pred, J, 3)
+    kept_f = (kept_j[:, :, 1:] - kept_j[:, :, :1]).reshape(k, t_pred, -1).astype(np.float32)
+    moved = np.linalg.norm(kept_j - raw_j, axis=-1)
+    notes.append(
+        f"skeleton: futures put on the input's bone lengths (the BVH files, 'futures' and 'joints' in futures.npz); "
+        f"joints moved {100 * moved.mean():.1f} cm on average, {100 * moved.max():.1f} cm at most, from the model's "
+        "output ('futures_raw')"
+    )
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    np.savez(
+        out / "futures.npz", futures=kept_f, futures_raw=futures, observed=x,
+        ground_truth=gt if gt is not None else np.zeros((0,) + x.shape[1:]),
+        joints=kept_j.astype(np.float32), joints_raw=raw_j.astype(np.float32), observed_joints=np.stack(kept)[0, :t_his].astype(np.float32),
+        names=np.array(lay["joints"]), parents=np.array(lay["parents"]), fps=fps, t_his=t_his, t_pred=t_pred, method=method,
+        k=k, end_frame=end, input=str(motion.path), notes="\n".join(notes),
+    )
+    written = [out / "futures.npz"]
+    end_sites = read_end_sites(motion.path) if motion.bvh is not None else None
+    for i, b in enumerate(fitted):
+        written.append(write_bvh(out / f"future_{i:02d}.bvh", b, end_sites))
     if gif:
         from jaxmotion.animate import animate_futures
 
         written.append(animate_futures(
-            x, futures, gt, tuple(lay["parents"]), out / "samples.gif", fps=fps,
+            x, kept_f, gt, tuple(lay["parents"]), out / "samples.gif", fps=fps,
             title=f"{motion.path.name}: frames {end + 1 - t_his}-{end} observed, {method}, K={k}",
         ))
     lines = [

@@ -276,3 +276,26 @@ def test_load_restores_only_the_stages_asked_for(run, tmp_path):
         jaxmotion.load(part, stages=(first, last))
     with pytest.raises(CheckpointError, match=r"\['nope'\] not trained"):
         jaxmotion.load(part, stages=(first, "nope"))
+
+
+def test_predicted_bvh_npz_and_gif_show_one_motion_on_the_input_skeleton(run, tmp_path):
+    """The futures are put on the input's bone lengths: BVH forward kinematics == futures.npz within 1 mm; raw output kept."""
+    _, ds, _, _, moved = run
+    pos = ds.test[0].positions.astype(np.float64) * 100  # centimetres
+    pos[:, 1:] += 0.3 * (pos[:, 1:] - pos[:, [0]])  # a body 1.3 x the model's: its bone lengths differ from the training data's
+    clip = write_bvh(tmp_path / "big.bvh", bvh_from_positions(ds.skeleton.names, ds.skeleton.parents, pos, ds.fps))
+    lines = predict_file(jaxmotion.load(moved), clip, tmp_path / "o", k=3)
+    assert any("put on the input's bone lengths" in s for s in lines)
+    z = np.load(tmp_path / "o" / "futures.npz")
+    src = read_bvh(clip)
+    par = np.array(src.parents)
+    want = np.linalg.norm(src.offsets[1:], axis=-1) * 0.01
+    for i in range(3):
+        p = forward_kinematics(read_bvh(tmp_path / "o" / f"future_{i:02d}.bvh")) * 0.01
+        assert np.abs(p[15:] - z["joints"][i]).max() < 1e-3
+        assert np.abs(p[:15] - z["observed_joints"]).max() < 1e-3
+        np.testing.assert_allclose(np.linalg.norm(p[:, 1:] - p[:, par[1:]], axis=-1), np.broadcast_to(want, (75, len(want))), rtol=1e-5)
+        np.testing.assert_allclose(z["futures"][i], (z["joints"][i][:, 1:] - z["joints"][i][:, :1]).reshape(60, -1), atol=1e-5)
+    # The raw output stays beside it, and it is another motion: the model's bodies have the training data's size.
+    raw = z["futures_raw"].reshape(3, 60, -1, 3)
+    assert raw.shape == (3, 60, ds.skeleton.num_joints - 1, 3) and np.abs(z["futures_raw"] - z["futures"]).max() > 0.01
