@@ -44,6 +44,9 @@ def _parser() -> argparse.ArgumentParser:
         s.add_argument("--precision", choices=("float32", "bf16"), default=None,
                        help="override the config's matrix-product precision (Config.precision): bf16 = bfloat16 operands, "
                             "float32 accumulation; faster only on CPUs with bfloat16 instructions")
+        s.add_argument("--scale", nargs="+", default=None, metavar="S|PATTERN=S",
+                       help="a plain BVH folder's metres per file unit: one number for every file, or PATTERN=S per file "
+                            "(glob on path, name or stem; files no pattern matches are guessed). Default: each file's own, guessed")
         if name in ("run", "train"):
             s.add_argument("--resume", action="store_true", help="continue from the latest checkpoints in --workdir")
         if name in ("run", "train", "eval"):
@@ -138,6 +141,8 @@ def main(argv: list[str] | None = None) -> int:
 
         cfg = dataclasses.replace(cfg, seed=cfg.seed if args.seed is None else args.seed,
                                   precision=args.precision or cfg.precision)
+    if args.scale is not None:
+        cfg = _with_scale(cfg, args.scale, args.data)
     cfg = experiment.resolve(cfg)
     part_control = _part_control(cfg, args.method) if args.command == "sample" and args.fix_part else None
     workdir = Path(args.workdir or Path("runs") / cfg.name).absolute()
@@ -194,6 +199,23 @@ def main(argv: list[str] | None = None) -> int:
     else:
         print(f"checkpoints: {workdir}  total {time.perf_counter() - t0:.0f}s")
     return 0
+
+
+def _with_scale(cfg, values: list[str], data: str | None):
+    """Returns `cfg` with `--scale` in its data options (`data.units.parse_scale`); exits if the data is not a plain BVH folder."""
+    import dataclasses
+
+    from jaxmotion.data.units import parse_scale
+    from jaxmotion.experiment import plain_bvh_folder
+
+    spec = data or cfg.dataset
+    if not plain_bvh_folder(Path(spec).expanduser()):
+        raise SystemExit(f"--scale applies to a plain folder of BVH files; {spec} is not one (its loader knows its units)")
+    try:
+        scale = parse_scale(values)
+    except ValueError as e:
+        raise SystemExit(str(e)) from None
+    return dataclasses.replace(cfg, data_options={**cfg.data_options, "scale": scale})
 
 
 def _predict(args) -> int:

@@ -59,7 +59,7 @@ def load_data(cfg: Config, data: str | None = None, test_files: list[str] | None
         return make_synthetic(cfg.seed)
     path = Path(spec).expanduser()
     options = dict(cfg.data_options)
-    if _plain_bvh_folder(path) and "split" not in options:
+    if plain_bvh_folder(path) and "split" not in options:
         split, how = folder_split(path, test_files)
         ds = load_dataset(spec, split=lambda f: split.get(f, "test"), **options)
         ds.info["split"] = how
@@ -69,7 +69,7 @@ def load_data(cfg: Config, data: str | None = None, test_files: list[str] | None
     return load_dataset(spec, **options)
 
 
-def _plain_bvh_folder(path: Path) -> bool:
+def plain_bvh_folder(path: Path) -> bool:
     """Returns whether `path` is a folder of BVH files that no dataset protocol (Bandai-Namco-2) claims."""
     if not path.is_dir() or (path / BANDAI_TARBALL).is_file() or any(path.glob("dataset-2_*.bvh")):
         return False
@@ -132,7 +132,7 @@ def check_lengths(ds: MotionDataset, train: list[np.ndarray], test: list[np.ndar
     which = "training" if not any(len(f) >= need for f in train) else "test"
     hint = ""
     if "split" in ds.info:
-        hint = f" Split: {ds.info['split']}. Choose other test files with --test-files, or train at a lower frame rate (data_options={{'downsample': 4}}) or with shorter windows (data_options t_his / t_pred)."
+        hint = f" Split: {ds.info['split']}. Choose other test files with --test-files, or train at a lower frame rate (data_options={{'fps': 30}}) or with shorter windows (data_options t_his / t_pred)."
     raise DataError(
         ds.info.get("source", ds.name),
         f"no {which} window fits: {len(ds.train)} training sequences (longest {longest(train)} frames) and "
