@@ -77,6 +77,7 @@ def _parser() -> argparse.ArgumentParser:
     s = sub.add_parser("export", help="write a trained run as one inference-only model file (for jaxmotion.load and predict --model)")
     s.add_argument("run_dir", help="a trained work directory (with predictor.json)")
     s.add_argument("--out", required=True, help="the model file to write (e.g. model.msgpack)")
+    s.add_argument("--stages", nargs="+", default=None, help="only these stages (default: all), e.g. cvae: DLow's sampler without its Q networks")
     s = sub.add_parser("view", help="one self-contained HTML page to browse test windows and their K futures in 3-D (needs plotly)")
     s.add_argument("run_dir", nargs="?", default=None, help="a trained work directory (default: --workdir, else runs/<config name>)")
     s.add_argument("--config", default=None, help="config file that rebuilds the test windows (default: the run's own, from predictor.json)")
@@ -120,7 +121,7 @@ def main(argv: list[str] | None = None) -> int:
         from jaxmotion.predictor import export
 
         try:
-            path = export(args.run_dir, args.out)
+            path = export(args.run_dir, args.out, tuple(args.stages) if args.stages else None)
         except (CheckpointError, FileNotFoundError) as e:
             print(f"jaxmotion export: {e}", file=sys.stderr)
             return 2

@@ -170,7 +170,8 @@ def predict_file(
     if method is None:
         method = model.main_method(k)
         if method != model.config.method:
-            notes.append(f"method: {model.config.method!r} has no predictor at K={k} (trained K: {tuple(model.config.eval_k)}); using {method!r}")
+            notes.append(f"method: {model.config.method!r} has no predictor at K={k} in this model (trained K: "
+                         f"{tuple(model.config.eval_k)}; stages here: {sorted(model.params)}); using {method!r}")
     futures = model.predict(x, k, jax.random.key(seed), method)  # (K, t_pred, D)
 
     # World joint positions of observed + future frames, the root held at its last observed place.

@@ -288,7 +288,7 @@ def load(run_dir: str | Path, stages: tuple[str, ...] | None = None) -> MotionPr
 
 EXPORT_FORMAT = "jaxmotion-model"
 # Shipped models: name -> file in jaxmotion/pretrained/ (its README states the data, the command and the licence).
-PRETRAINED = {"bandai": "dlow_bandai.msgpack"}
+PRETRAINED = {"bandai": "bandai.msgpack"}
 
 
 def pretrained_path(name: str) -> Path:
@@ -301,14 +301,14 @@ def pretrained_path(name: str) -> Path:
     return path
 
 
-def export(run_dir: str | Path, out: str | Path) -> Path:
-    """Writes the trained run at `run_dir` as one inference-only file (msgpack: predictor.json's contents, every stage's
-    parameters and their shapes) and returns its path; `load` and `jaxmotion predict` accept it."""
+def export(run_dir: str | Path, out: str | Path, stages: tuple[str, ...] | None = None) -> Path:
+    """Writes the trained run at `run_dir` as one inference-only file (msgpack: predictor.json's contents, the parameters
+    of every stage, or of `stages`, and their shapes) and returns its path; `load` and `jaxmotion predict` accept it."""
     from flax import serialization
 
     from jaxmotion.train.runner import param_shapes
 
-    model = MotionPredictor(run_dir)
+    model = MotionPredictor(run_dir, stages)
     params = {stage: jax.tree.map(np.asarray, p) for stage, p in model.params.items()}
     payload = {
         "format": EXPORT_FORMAT, "version": VERSION, "predictor": json.dumps(model.manifest),

@@ -142,7 +142,7 @@ def test_same_names_other_hierarchy_is_refused_naming_the_difference(tmp_path):
 
 def test_joint_map_file_maps_other_names(tmp_path):
     rename = {n: f"j{i:02d}" for i, n in enumerate(BANDAI_NAMES)}
-    clip = humanoid_bvh("bandai", tmp_path / "odd_names.bvh", rename=rename, frames=3)
+    clip = humanoid_bvh("bandai", tmp_path / "odd_names.bvh", rename=rename, frames=40)
     b = read_bvh(clip)
     model = jaxmotion.load("bandai")
     with pytest.raises(DataError, match=r"fit no built-in map.*Pass --joint-map FILE"):
@@ -150,6 +150,9 @@ def test_joint_map_file_maps_other_names(tmp_path):
     (tmp_path / "map.json").write_text(json.dumps(rename))
     mapping, how = match_skeleton(model.layout["joints"], model.layout["parents"], b.names, b.parents, rename)
     assert mapping == rename and how == "joints: by the given joint map"
+    assert main(["predict", "--model", "bandai", str(clip), "--joint-map", str(tmp_path / "map.json"), "--k", "2",
+                 "--out", str(tmp_path / "o")]) == 0
+    assert read_bvh(tmp_path / "o" / "future_01.bvh").names == b.names
 
 
 # ----------------------------------------------------------------------------------------------

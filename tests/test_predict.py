@@ -299,3 +299,22 @@ def test_predicted_bvh_npz_and_gif_show_one_motion_on_the_input_skeleton(run, tm
     # The raw output stays beside it, and it is another motion: the model's bodies have the training data's size.
     raw = z["futures_raw"].reshape(3, 60, -1, 3)
     assert raw.shape == (3, 60, ds.skeleton.num_joints - 1, 3) and np.abs(z["futures_raw"] - z["futures"]).max() > 0.01
+
+
+def test_exported_model_predicts_like_its_run(run, tmp_path, capsys):
+    _, ds, prep, _, moved = run
+    assert main(["export", str(moved), "--out", str(tmp_path / "m.msgpack")]) == 0
+    from_dir, from_file = jaxmotion.load(moved), jaxmotion.load(tmp_path / "m.msgpack")
+    assert from_file.methods == from_dir.methods and from_file.layout == from_dir.layout
+    key = jax.random.key(3)
+    for m in from_dir.methods:
+        np.testing.assert_array_equal(from_file.predict(prep.x[:2], 4, key, m), from_dir.predict(prep.x[:2], 4, key, m))
+    # No optimiser state: the file is about the size of the parameters.
+    n = sum(v.size for p in from_dir.params.values() for v in jax.tree.leaves(p))
+    assert (tmp_path / "m.msgpack").stat().st_size < 4 * n * 1.05 + 20_000
+    clip = synthetic_clip(ds, tmp_path / "clip.bvh")
+    assert main(["predict", "--model", str(tmp_path / "m.msgpack"), str(clip), "--k", "2", "--out", str(tmp_path / "o")]) == 0
+    bad = tmp_path / "bad.msgpack"
+    bad.write_bytes((tmp_path / "m.msgpack").read_bytes()[:5000])
+    with pytest.raises(CheckpointError, match="not an exported jaxmotion model"):
+        jaxmotion.load(bad)
