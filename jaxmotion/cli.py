@@ -5,6 +5,7 @@
     jaxmotion train --config CFG [--data PATH] [--workdir DIR] [--resume]
     jaxmotion train --config CFG --coordinator-address HOST:PORT --num-processes N --process-id I   # in each of N processes
     jaxmotion eval --config CFG [--data PATH] [--workdir DIR]
+    jaxmotion eval --model bandai --data MY_BVH_FOLDER [--workdir DIR]   # a shipped or trained model, every clip a test clip
     jaxmotion sample --config CFG [--workdir DIR] --window 3 --k 50 --method dlow
     jaxmotion sample --config experiments/configs/gsps_synthetic.py --window 208 --fix-part lower   # one lower body, 10 upper bodies
     jaxmotion methods                               # the registered methods and their stages' settings type
@@ -51,6 +52,12 @@ def _parser() -> argparse.ArgumentParser:
             s.add_argument("--resume", action="store_true", help="continue from the latest checkpoints in --workdir")
         if name in ("run", "train", "eval"):
             _distributed_flags(s)
+        if name == "eval":
+            g = s.add_argument_group("a trained or shipped model on your own folder (every clip a test clip)")
+            g.add_argument("--model", default=None, help="a shipped model ('bandai'), an exported file or a run directory; "
+                                                         "--data is then a folder of BVH clips, all of them test clips")
+            g.add_argument("--joint-map", default=None, metavar="FILE", help='JSON {"model joint": "file joint"} (default: names, else a built-in map)')
+            g.add_argument("--k", type=int, default=None, help="number of futures (default: the model's largest K)")
         if name == "sample":
             s.add_argument("--window", type=int, default=0, help="test window index")
             s.add_argument("--k", type=int, default=None, help="number of futures (default: largest K of the config; 10 with --fix-part)")
@@ -129,6 +136,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.command == "view":
         return _view(args)
+    if args.command == "eval" and args.model is not None:
+        return _eval_model(args)
     from jaxmotion import distributed
 
     if args.command in ("run", "train", "eval"):  # before anything runs on a device
@@ -217,6 +226,26 @@ def _with_scale(cfg, values: list[str], data: str | None):
     except ValueError as e:
         raise SystemExit(str(e)) from None
     return dataclasses.replace(cfg, data_options={**cfg.data_options, "scale": scale})
+
+
+def _eval_model(args) -> int:
+    """`jaxmotion eval --model M --data FOLDER`: every clip of the folder a test clip (`jaxmotion.evaluate_folder`)."""
+    from jaxmotion.data.units import parse_scale
+    from jaxmotion.evaluate_folder import evaluate_folder
+    from jaxmotion.joint_maps import read_joint_map
+    from jaxmotion.predictor import load
+
+    if args.data is None or args.config is not None:
+        raise SystemExit("jaxmotion eval --model M: give the folder of clips with --data FOLDER (and no --config: the model has one)")
+    workdir = Path(args.workdir or Path("runs") / f"eval_{Path(args.data).name}")
+    try:
+        scale = parse_scale(args.scale)
+    except ValueError as e:
+        raise SystemExit(str(e)) from None
+    joint_map = read_joint_map(args.joint_map) if args.joint_map else None
+    lines = evaluate_folder(load(args.model), args.data, workdir, k=args.k, scale=scale, joint_map=joint_map, seed=args.seed)
+    print("\n".join(lines))
+    return 0
 
 
 def _predict(args) -> int:

@@ -190,3 +190,30 @@ def test_shipped_model_predicts_on_the_cmu_clips(tmp_path, capsys):
     lines = _check_prediction(CMU / "01_03.bvh", tmp_path / "o", 0.056444, capsys)
     assert any("resampled from 120 to 30 fps" in s for s in lines)
     assert any("the file's cmu names" in s for s in lines)
+
+
+# ----------------------------------------------------------------------------------------------
+# jaxmotion eval --model on a folder whose every clip is a test clip
+
+
+def test_eval_of_the_shipped_model_on_a_fabricated_folder(tmp_path, capsys):
+    humanoid_bvh("lafan1", tmp_path / "clips" / "walk_a.bvh", fps=60.0, frames=400)
+    humanoid_bvh("lafan1", tmp_path / "clips" / "walk_b.bvh", fps=60.0, frames=300, seed=1, unit=1.0)
+    assert main(["eval", "--model", "bandai", "--data", str(tmp_path / "clips"), "--workdir", str(tmp_path / "w"), "--k", "10"]) == 0
+    printed = capsys.readouterr().out
+    assert "2 clips, all test" in printed and "files at 60 fps" in printed
+    records = json.loads((tmp_path / "w" / "metrics.json").read_text())
+    # 400 and 300 frames at 60 fps -> 200 and 150 at 30; test windows of 75 frames every 15 (T > 75 + start): 9 + 5.
+    assert {r["method"] for r in records} == {"cvae", "zero_velocity"} and all(r["n_windows"] == 14 and r["K"] == 10 for r in records)
+    m = {r["method"]: r["metrics"] for r in records}
+    assert all(np.isfinite(v["ADE"]) and v["ADE"] > 0 for v in m.values()) and m["cvae"]["APD"] > 0
+    assert not (tmp_path / "w" / "predictor.json").exists()
+
+
+@pytest.mark.skipif(not CMU.is_dir(), reason=f"shared CMU BVH clips not found at {CMU}")
+def test_eval_of_the_shipped_model_on_the_cmu_folder(tmp_path, capsys):
+    assert main(["eval", "--model", "bandai", "--data", str(CMU), "--workdir", str(tmp_path / "w"), "--k", "5"]) == 0
+    records = json.loads((tmp_path / "w" / "metrics.json").read_text())
+    # 2752 and 4511 frames at 120 fps -> 688 and 1128 at 30 fps: (688 - 75) // 15 + 1 + (1128 - 75) // 15 + 1 windows.
+    assert all(r["n_windows"] == 41 + 71 for r in records)
+    assert "cmu names" in capsys.readouterr().out
