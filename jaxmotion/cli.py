@@ -163,7 +163,7 @@ def main(argv: list[str] | None = None) -> int:
     label = ds.name
     print(
         f"data: {ds.name}: {len(ds.train)} train / {len(ds.test)} test sequences, D={ds.dim}, "
-        f"{ds.t_his}->{ds.t_pred} frames at {ds.fps:g} fps, {prep.sampler.num_windows} train windows, "
+        f"{ds.t_his}->{ds.t_pred} frames at {round(ds.fps, 2):g} fps, {prep.sampler.num_windows} train windows, "
         f"{len(prep.windows)} test windows ({time.perf_counter() - t0:.1f}s)",
         flush=True,
     )

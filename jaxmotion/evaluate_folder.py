@@ -59,7 +59,7 @@ def evaluate_folder(
     clips = ", ".join(sorted(s.name for s in ds.test)[:6])
     return [
         f"data: {folder}: {len(ds.test)} clips, all test ({clips}{', ...' if len(ds.test) > 6 else ''}); {how}; "
-        f"{ds.t_his}->{ds.t_pred} frames at {ds.fps:g} fps (files at {', '.join(f'{r:g}' for r in ds.info['file_fps'])} fps), "
+        f"{ds.t_his}->{ds.t_pred} frames at {round(ds.fps, 2):g} fps (files at {', '.join(f'{round(r, 2):g}' for r in ds.info['file_fps'])} fps), "
         f"{len(prep.windows)} test windows",
         f"model: {model.run_dir} ({model.manifest['dataset']['name']}, {model.config.method}), K={k}",
         f"wrote {workdir / 'metrics.json'} ({len(records)} records)",

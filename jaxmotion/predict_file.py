@@ -146,7 +146,7 @@ def predict_file(
     if abs(ratio - 1) > 0.01:
         pos = resample(pos, fps_in, fps)
         notes.append(
-            f"frame rate: resampled from {fps_in:g} to {fps:g} fps by linear interpolation of joint positions "
+            f"frame rate: resampled from {round(fps_in, 2):g} to {round(fps, 2):g} fps by linear interpolation of joint positions "
             f"({n_in} -> {pos.shape[0]} frames); --frame counts input frames"
         )
     else:
@@ -229,7 +229,7 @@ def predict_file(
             title=f"{motion.path.name}: frames {end + 1 - t_his}-{end} observed, {method}, K={k}",
         ))
     lines = [
-        f"input: {motion.path} ({n_in} frames at {motion.fps or fps:g} fps, {len(motion.names or idx)} joints)",
+        f"input: {motion.path} ({n_in} frames at {round(motion.fps or fps, 2):g} fps, {len(motion.names or idx)} joints)",
         f"model: {model.run_dir} ({model.manifest['dataset']['name']}, {model.config.method}; {len(lay['joints'])} joints, "
         f"{t_his} -> {t_pred} frames at {fps:g} fps)",
         *[f"note: {s}" for s in notes],

@@ -74,7 +74,7 @@ def write_manifest(cfg: Config, ds: MotionDataset, workdir: str | Path, data: st
     manifest = {
         "version": VERSION,
         "method": cfg.method,
-        "dataset": {"name": ds.name, "source": data or ds.info.get("source") or cfg.dataset, "options": dict(cfg.data_options)},
+        "dataset": {"name": ds.name, "source": _absolute(data or ds.info.get("source") or cfg.dataset), "options": dict(cfg.data_options)},
         "layout": layout(ds),
         "bone_lengths": bone_lengths(ds),
         "config": to_dict(cfg),
@@ -84,6 +84,12 @@ def write_manifest(cfg: Config, ds: MotionDataset, workdir: str | Path, data: st
     tmp.write_text(json.dumps(manifest, indent=1, default=_json_default))
     tmp.replace(path)
     return path
+
+
+def _absolute(source: str) -> str:
+    """Returns a data path made absolute where it exists (so a run's data is found from any folder); other sources unchanged."""
+    p = Path(str(source)).expanduser()
+    return str(p.resolve()) if p.exists() else str(source)
 
 
 def _json_default(v):

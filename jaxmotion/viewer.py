@@ -313,6 +313,25 @@ def write_page(fig: dict, path: str | Path) -> Path:
     return path
 
 
+def run_data(source: str, run_dir: str | Path) -> str:
+    """Returns the run's data source as a path that exists: as recorded, else relative to the run or a folder above it.
+
+    A run records the path it was trained with, often relative to the folder training started in;
+    raises `DataError` saying to pass `--data` when none of those exists.
+    """
+    if source == "synthetic" or str(source).startswith("amass:"):
+        return source
+    p = Path(source).expanduser()
+    if p.exists():
+        return str(p)
+    run_dir = Path(run_dir).absolute()
+    for base in (run_dir, *run_dir.parents):
+        if not p.is_absolute() and (base / p).exists():
+            return str(base / p)
+    raise DataError(source, f"the data {Path(run_dir) / 'predictor.json'} records is not found from here ({Path.cwd()}) nor "
+                            "relative to the run or a folder above it; pass --data PATH")
+
+
 def view_run(
     run_dir: str | Path,
     out: str | Path | None = None,
@@ -345,7 +364,7 @@ def view_run(
     model = load(run_dir)
     run_cfg, source = run_config(run_dir)
     cfg = experiment.resolve(load_config(config)) if config else run_cfg
-    ds = experiment.load_data(cfg, data or source, test_files)
+    ds = experiment.load_data(cfg, data or run_data(source, run_dir), test_files)
     want = (model.dim, model.t_his, model.t_pred, list(model.skeleton.names))
     have = (ds.dim, ds.t_his, ds.t_pred, list(ds.skeleton.names))
     if want != have:
@@ -358,7 +377,7 @@ def view_run(
     shown = len(views[0].futures)
     note = f" (the first of K={kk})" if kk > shown else f" (the run's largest K; --k {k} asked for more)" if shown < k else ""
     drawn = f"{shown} futures{note}"
-    title = f"{ds.name}: {method}, {drawn}; {ds.t_his} observed -> {ds.t_pred} predicted frames at {ds.fps:g} fps"
+    title = f"{ds.name}: {method}, {drawn}; {ds.t_his} observed -> {ds.t_pred} predicted frames at {round(ds.fps, 2):g} fps"
     fig = figure(views, ds.skeleton.parents, fps=ds.fps, title=title, max_frames=max_frames)
     path = write_page(fig, Path(out) if out else Path(run_dir) / "view.html")
     return [

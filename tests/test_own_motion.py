@@ -217,3 +217,27 @@ def test_eval_of_the_shipped_model_on_the_cmu_folder(tmp_path, capsys):
     # 2752 and 4511 frames at 120 fps -> 688 and 1128 at 30 fps: (688 - 75) // 15 + 1 + (1128 - 75) // 15 + 1 windows.
     assert all(r["n_windows"] == 41 + 71 for r in records)
     assert "cmu names" in capsys.readouterr().out
+
+
+# ----------------------------------------------------------------------------------------------
+# The viewer finds a run's data; frame rates print rounded
+
+
+def test_view_finds_the_data_relative_to_the_run_or_says_pass_data(tmp_path, monkeypatch):
+    from jaxmotion.viewer import run_data
+
+    (tmp_path / "project" / "data" / "clips").mkdir(parents=True)
+    run = tmp_path / "project" / "runs" / "r"
+    run.mkdir(parents=True)
+    monkeypatch.chdir(tmp_path)  # elsewhere: the recorded relative path does not exist from here
+    assert run_data("data/clips", run) == str(tmp_path / "project" / "data" / "clips")
+    assert run_data("synthetic", run) == "synthetic"
+    with pytest.raises(DataError, match="pass --data PATH"):
+        run_data("data/missing", run)
+
+
+def test_frame_rates_print_rounded(tmp_path):
+    clip = humanoid_bvh("bandai", tmp_path / "c.bvh", fps=1 / 0.033334, frames=100)
+    assert "Frame Time: 0.0333340000" in clip.read_text()
+    lines = predict_file(jaxmotion.load("bandai"), clip, tmp_path / "o", k=2, gif=False)
+    assert "(100 frames at 30 fps, 21 joints)" in lines[0] and not any("resampled" in s for s in lines)

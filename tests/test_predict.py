@@ -217,7 +217,7 @@ def test_report_writes_an_animated_gif(run, tmp_path):
     gif = Image.open(tmp_path / "samples.gif")
     # Observed (15) then future (60) frames, subsampled to at most 30 (+ the last); truth and the first futures side by side.
     assert png.name == "samples.png" and 20 <= gif.n_frames <= 31
-    assert gif.size[0] > 4 * gif.size[1]
+    assert gif.size[0] > 4 * gif.size[1] and gif.size[0] >= 1200
     first, last = np.asarray(gif.convert("RGB")), (gif.seek(gif.n_frames - 1), np.asarray(gif.convert("RGB")))[1]
     assert np.abs(first.astype(int) - last.astype(int)).sum() > 0  # it moves
 
