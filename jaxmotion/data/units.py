@@ -21,8 +21,8 @@ import numpy as np
 from jaxmotion.errors import DataError
 from jaxmotion.formats.bvh import CMU_SCALE, Bvh, forward_kinematics, guess_scale, is_ground_skeleton
 
-# The largest joint-to-joint distance of a person: a child's feet to head, up to an adult's feet to raised hands.
-PLAUSIBLE_SIZE = (0.8, 2.6)
+# The largest joint-to-joint distance of a person (an infant to an adult with raised hands; the lower bound as `guess_scale`'s).
+PLAUSIBLE_SIZE = (0.5, 2.6)
 MAX_SIZE_RATIO = 2.0
 # Units a file may be in, offered in the error when its guess fails.
 KNOWN_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "CMU/ASF unit": CMU_SCALE, "foot": 0.3048}
