@@ -3,7 +3,7 @@
     jaxmotion predict runs/dlow_synthetic --input clip.bvh --k 5 --out futures/
 
 `read_motion` reads a BVH clip (forward kinematics, units guessed as `formats.bvh.guess_scale` does
-unless `scale` is given) or an npz of joint positions (`positions` (T, J, 3), optional `names`,
+unless `scale` is given, and checked against a person's size, `data.units`) or an npz of joint positions (`positions` (T, J, 3), optional `names`,
 `fps`, `scale` (metres per unit, default 1), `up_axis`), or a C3D marker file (labels without
 the `Subject:` prefix, metres, NaN at gaps: a marker model's input, `predict_markers`). `predict_file`
 converts to metres, turns the up axis onto the model's, resamples a different frame rate by linear interpolation of
@@ -28,7 +28,8 @@ import jax
 import numpy as np
 
 from jaxmotion.errors import DataError
-from jaxmotion.formats.bvh import Bvh, forward_kinematics, guess_scale, read_bvh
+from jaxmotion.data.units import body_size, file_scales
+from jaxmotion.formats.bvh import Bvh, forward_kinematics, read_bvh
 from jaxmotion.formats.bvh_write import read_end_sites, write_bvh
 from jaxmotion.data.windows import resample  # noqa: F401 (also part of this module's interface)
 from jaxmotion.formats.c3d import read_c3d
@@ -59,8 +60,9 @@ def read_motion(path: str | Path, scale: float | None = None) -> Motion:
         raise FileNotFoundError(f"{path}: no such file")
     if path.suffix.lower() == ".bvh":
         bvh = read_bvh(path)
-        s = guess_scale(bvh) if scale is None else scale
-        notes = [f"units: {s:g} m per file unit ({'guessed from the skeleton' if scale is None else '--scale'})"]
+        s = file_scales({path: bvh}, scale, path.parent)[path]  # guessed or given, checked against a person's size
+        notes = [f"units: {s:g} m per file unit ({'guessed from the skeleton' if scale is None else '--scale'}), "
+                 f"a body {body_size(bvh) * s:.2f} m across"]
         return Motion(path, bvh.names, forward_kinematics(bvh) * s, bvh.fps, s, 1, bvh, notes)
     if path.suffix.lower() == ".c3d":  # markers, NaN at gaps, for marker models (`predict_markers`)
         rec = read_c3d(path)

@@ -188,6 +188,7 @@ def test_shipped_model_predicts_on_mixamo_and_lafan1_skeletons(conv, prefix, tmp
 @pytest.mark.skipif(not CMU.is_dir(), reason=f"shared CMU BVH clips not found at {CMU}")
 def test_shipped_model_predicts_on_the_cmu_clips(tmp_path, capsys):
     lines = _check_prediction(CMU / "01_03.bvh", tmp_path / "o", 0.056444, capsys)
+    assert any("units: 0.056444 m per file unit (guessed from the skeleton), a body 1.3" in s for s in lines)
     assert any("resampled from 120 to 30 fps" in s for s in lines)
     assert any("the file's cmu names" in s for s in lines)
 
@@ -241,3 +242,10 @@ def test_frame_rates_print_rounded(tmp_path):
     assert "Frame Time: 0.0333340000" in clip.read_text()
     lines = predict_file(jaxmotion.load("bandai"), clip, tmp_path / "o", k=2, gif=False)
     assert "(100 frames at 30 fps, 21 joints)" in lines[0] and not any("resampled" in s for s in lines)
+
+
+def test_predict_refuses_a_clip_whose_units_make_no_person(tmp_path, capsys):
+    clip = humanoid_bvh("bandai", tmp_path / "tiny_units.bvh", unit=0.056444, frames=100)
+    assert main(["predict", "--model", "bandai", str(clip), "--out", str(tmp_path / "o")]) == 2
+    assert "would fit: " in capsys.readouterr().err and not (tmp_path / "o").exists()
+    assert main(["predict", "--model", "bandai", str(clip), "--scale", "0.056444", "--k", "2", "--out", str(tmp_path / "o")]) == 0
