@@ -96,6 +96,8 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--k", type=int, default=10, help="futures per window (default 10)")
     s.add_argument("--method", default=None, help="which predictor (default: the run's method)")
     s.add_argument("--seed", type=int, default=0, help="seed of the sampling key")
+    s.add_argument("--keep-skeleton", action="store_true",
+                   help="put each future on its window's observed bone lengths (as predict writes them); default: the model's output")
     return p
 
 
@@ -287,7 +289,7 @@ def _view(args) -> int:
         from jaxmotion.viewer import view_run
 
         lines = view_run(run_dir, args.out, windows=args.windows, k=args.k, method=args.method, seed=args.seed,
-                         config=args.config, data=args.data, test_files=args.test_files)
+                         config=args.config, data=args.data, test_files=args.test_files, keep_skeleton=args.keep_skeleton)
     except ModuleNotFoundError as e:
         if e.name != "plotly":
             raise

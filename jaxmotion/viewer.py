@@ -2,6 +2,7 @@
 
     jaxmotion view runs/dlow_synthetic                       # writes runs/dlow_synthetic/view.html
     jaxmotion view RUN_DIR --out page.html --windows 4 --k 20 --method cvae
+    jaxmotion view RUN_DIR --keep-skeleton                   # futures on each window's observed bone lengths
 
 The page is one self-contained file (plotly's JavaScript is embedded, nothing is fetched when it is
 opened). It shows one test window at a time in plotly's 3-D scene (drag to rotate, scroll to zoom):
@@ -33,6 +34,7 @@ import dataclasses
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from jaxmotion import experiment, metrics
@@ -119,11 +121,19 @@ def window_views(
     method: str,
     key: jax.Array,
     mm: int = 4,
+    keep_skeleton: bool = False,
 ) -> tuple[list[WindowView], int]:
-    """Returns the views of test windows `windows` (indices into `prep`) and the K their futures were drawn at."""
+    """Returns the views of test windows `windows` (indices into `prep`) and the K their futures were drawn at.
+
+    `keep_skeleton`: each future is put on its window's bone lengths (its last observed frame; every
+    predicted bone keeps its direction, `metrics.motion_transfer`), as `jaxmotion predict` writes them.
+    """
     ds = prep.dataset
     kk = sampling_k(model, k, method)
     futures = model.predict(prep.x[windows], k=kk, key=key, method=method)[:, :k]  # (n, min(k, kk), t_pred, D)
+    if keep_skeleton:
+        last = jnp.asarray(prep.x[windows][:, -1][:, None, None])
+        futures = np.asarray(metrics.motion_transfer(jnp.asarray(futures), last, tuple(int(p) for p in ds.skeleton.parents)))
     sets = metrics.multimodal_gt(prep.x[:, -1], ds.mm_threshold, exclude_self=True)
     idx, mask = np.asarray(sets.idx), np.asarray(sets.mask)
     views = []
@@ -345,6 +355,7 @@ def view_run(
     config: str | None = None,
     data: str | None = None,
     test_files: list[str] | None = None,
+    keep_skeleton: bool = False,
 ) -> list[str]:
     """Writes the viewer page of the trained run `run_dir` (default `run_dir/view.html`) and returns what it wrote.
 
@@ -373,10 +384,10 @@ def view_run(
     prep = experiment.prepare(ds, cfg.max_test_windows, cfg.train_sampler)
     method = method or model.main_method()
     chosen = experiment.most_multimodal(prep, windows)
-    views, kk = window_views(model, prep, chosen, k=k, method=method, key=jax.random.key(seed), mm=mm)
+    views, kk = window_views(model, prep, chosen, k=k, method=method, key=jax.random.key(seed), mm=mm, keep_skeleton=keep_skeleton)
     shown = len(views[0].futures)
     note = f" (the first of K={kk})" if kk > shown else f" (the run's largest K; --k {k} asked for more)" if shown < k else ""
-    drawn = f"{shown} futures{note}"
+    drawn = f"{shown} futures{note}" + (" on the observed bone lengths" if keep_skeleton else "")
     title = f"{ds.name}: {method}, {drawn}; {ds.t_his} observed -> {ds.t_pred} predicted frames at {round(ds.fps, 2):g} fps"
     fig = figure(views, ds.skeleton.parents, fps=ds.fps, title=title, max_frames=max_frames)
     path = write_page(fig, Path(out) if out else Path(run_dir) / "view.html")
