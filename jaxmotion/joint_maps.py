@@ -110,11 +110,11 @@ def match_skeleton(
         how = "joints: matched by name"
     else:
         model_conv, file_conv = conventions_of(model_names), conventions_of(file_names)
-        both = [c for c in model_conv if c in file_conv] or [(m, f) for m in model_conv for f in file_conv]
-        if not both or len(set(plain_name(m) for m in model_names)) != len(model_names):
+        pairs = [(c, c) for c in model_conv if c in file_conv] or [(m, f) for m in model_conv for f in file_conv]
+        if not pairs or len(set(plain_name(m) for m in model_names)) != len(model_names):
             missing = [m for m in model_names if plain_name(m) not in plain]
             raise DataError(where, _no_match(model_names, file_names, missing, model_conv, file_conv))
-        pair = both[0] if isinstance(both[0], tuple) else (both[0], both[0])
+        pair = pairs[0]
         role_of = {name: role for role, name in CONVENTIONS[pair[0]].items()}
         if not all(plain_name(m) in role_of for m in model_names):
             extra = [m for m in model_names if plain_name(m) not in role_of]
