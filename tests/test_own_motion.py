@@ -186,8 +186,9 @@ def test_shipped_model_predicts_on_mixamo_and_lafan1_skeletons(conv, prefix, tmp
 
 
 @pytest.mark.skipif(not CMU.is_dir(), reason=f"shared CMU BVH clips not found at {CMU}")
-def test_shipped_model_predicts_on_the_cmu_clips(tmp_path, capsys):
-    lines = _check_prediction(CMU / "01_03.bvh", tmp_path / "o", 0.056444, capsys)
+@pytest.mark.parametrize("clip", ["01_01.bvh", "01_03.bvh"])
+def test_shipped_model_predicts_on_the_cmu_clips(clip, tmp_path, capsys):
+    lines = _check_prediction(CMU / clip, tmp_path / "o", 0.056444, capsys)
     assert any("units: 0.056444 m per file unit (guessed from the skeleton), a body 1.3" in s for s in lines)
     assert any("resampled from 120 to 30 fps" in s for s in lines)
     assert any("the file's cmu names" in s for s in lines)
