@@ -4,7 +4,7 @@
 
 One row of stick figures in front view: all K futures overlaid (the ground truth dashed), then the
 ground truth and the first few futures side by side. Every panel plays the observed frames (grey),
-then its future. Kept small (a few dozen frames, a small figure) so a report costs seconds.
+then its future. Kept small (a few dozen frames, at least 1,200 pixels wide) so a report costs seconds.
 """
 
 from __future__ import annotations
@@ -44,12 +44,14 @@ def animate_futures(
     panel_inches: float = 1.7,
     dpi: int = 60,
     joints: bool = False,
+    min_width: int = 1200,
 ) -> Path:
     """Writes and returns an animation (GIF, or MP4 when `path` ends in .mp4 and ffmpeg is there) of one window.
 
     `x` `(t_his, D)`, `preds` `(K, t_pred, D)`, `gt` `(t_pred, D)` or None: root-relative frame vectors
     (`joints=False`) or `(..., J, 3)` joint positions (`joints=True`). Frames are subsampled to at most
-    `max_frames` and played at the recording's speed (`fps` of the data).
+    `max_frames` and played at the recording's speed (`fps` of the data). The resolution is raised
+    above `dpi` where needed to make the image at least `min_width` pixels wide.
     """
     path = Path(path)
     if joints:
@@ -81,6 +83,7 @@ def animate_futures(
     half = 0.55 * (hi - lo).max()  # a square view around the motion, so panels are not squeezed
     lo, hi = (lo + hi) / 2 - half, (lo + hi) / 2 + half
     fig, axes = plt.subplots(1, len(panels), figsize=(panel_inches * len(panels), panel_inches * 1.25), squeeze=False)
+    dpi = max(dpi, int(np.ceil(min_width / (panel_inches * len(panels)))))
     axes = axes[0]
     colors = plt.cm.viridis(np.linspace(0, 0.9, k))
     for ax, (name, _) in zip(axes, panels):

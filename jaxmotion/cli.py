@@ -5,10 +5,13 @@
     jaxmotion train --config CFG [--data PATH] [--workdir DIR] [--resume]
     jaxmotion train --config CFG --coordinator-address HOST:PORT --num-processes N --process-id I   # in each of N processes
     jaxmotion eval --config CFG [--data PATH] [--workdir DIR]
+    jaxmotion eval --model bandai --data MY_BVH_FOLDER [--workdir DIR]   # a shipped or trained model, every clip a test clip
     jaxmotion sample --config CFG [--workdir DIR] --window 3 --k 50 --method dlow
     jaxmotion sample --config experiments/configs/gsps_synthetic.py --window 208 --fix-part lower   # one lower body, 10 upper bodies
     jaxmotion methods                               # the registered methods and their stages' settings type
-    jaxmotion predict RUN_DIR --input clip.bvh [--frame F] [--k K] [--method M] --out DIR   # your own motion
+    jaxmotion predict --model bandai clip.bvh --out DIR     # your own motion, the shipped model (no training)
+    jaxmotion predict RUN_DIR --input clip.bvh [--frame F] [--k K] [--method M] [--joint-map FILE] --out DIR
+    jaxmotion export RUN_DIR --out model.msgpack             # one inference-only file for load / predict --model
     jaxmotion view RUN_DIR [--out FILE.html] [--windows N] [--k K] [--method M]   # a 3-D viewer page (plotly)
 """
 
@@ -73,10 +76,19 @@ def _parser() -> argparse.ArgumentParser:
         s.add_argument("--precision", choices=("float32", "bf16"), default=None,
                        help="override the config's matrix-product precision (Config.precision): bf16 = bfloat16 operands, "
                             "float32 accumulation; faster only on CPUs with bfloat16 instructions")
+        s.add_argument("--scale", nargs="+", default=None, metavar="S|PATTERN=S",
+                       help="a plain BVH folder's metres per file unit: one number for every file, or PATTERN=S per file "
+                            "(glob on path, name or stem; files no pattern matches are guessed). Default: each file's own, guessed")
         if name in ("run", "train"):
             s.add_argument("--resume", action="store_true", help="continue from the latest checkpoints in --workdir")
         if name in ("run", "train", "eval"):
             _distributed_flags(s)
+        if name == "eval":
+            g = s.add_argument_group("a trained or shipped model on your own folder (every clip a test clip)")
+            g.add_argument("--model", default=None, help="a shipped model ('bandai'), an exported file or a run directory; "
+                                                         "--data is then a folder of BVH clips, all of them test clips")
+            g.add_argument("--joint-map", default=None, metavar="FILE", help='JSON {"model joint": "file joint"} (default: names, else a built-in map)')
+            g.add_argument("--k", type=int, default=None, help="number of futures (default: the model's largest K)")
         if name == "sample":
             s.add_argument("--window", type=_int_at_least(0), default=0, help="test window index")
             s.add_argument("--k", type=_int_at_least(1), default=None, help="number of futures (default: largest K of the config; 10 with --fix-part)")
@@ -86,16 +98,24 @@ def _parser() -> argparse.ArgumentParser:
                                 "torso right_leg left_leg right_arm left_arm) and vary the rest. The first part predicted "
                                 "(lower) is then identical across the K samples; a later one still follows the varying earlier parts")
     sub.add_parser("methods", help="list the registered methods")
-    s = sub.add_parser("predict", help="K futures of your own clip (BVH or npz of joint positions) from a trained run")
-    s.add_argument("run_dir", help="a trained work directory (with predictor.json)")
-    s.add_argument("--input", required=True, help="a .bvh clip, an .npz with 'positions' (T, J, 3) [, 'names', 'fps', 'scale'], or a .c3d marker file (marker models)")
+    s = sub.add_parser("predict", help="K futures of your own clip (BVH or npz of joint positions) from a trained or shipped model")
+    s.add_argument("paths", nargs="*", metavar="[RUN_DIR] CLIP",
+                   help="a trained work directory or exported model file, then the clip (without --model); the clip (with --model)")
+    s.add_argument("--model", default=None, help="a shipped model ('bandai': DLow on Bandai-Namco-2), an exported file, or a run directory")
+    s.add_argument("--input", default=None, help="the clip: a .bvh clip, an .npz with 'positions' (T, J, 3) [, 'names', 'fps', 'scale'], or a .c3d marker file (marker models)")
     s.add_argument("--frame", type=_int_at_least(0), default=None,
                    help="input frame that ends the observed window (default: the last one whose whole future is in the clip, else the last frame)")
     s.add_argument("--k", type=_int_at_least(1), default=None, help="number of futures (default: the run's largest K)")
     s.add_argument("--method", default=None, help="which predictor (default: the run's method)")
     s.add_argument("--scale", type=_positive_float, default=None, help="metres per file unit (default: guessed for BVH, 1 for npz)")
+    s.add_argument("--joint-map", default=None, metavar="FILE",
+                   help='JSON {"model joint": "file joint"} (default: same names, else a built-in map: CMU, Mixamo, LAFAN1, SMPL, Bandai-Namco)')
     s.add_argument("--seed", type=_int_at_least(0), default=0, help="seed of the sampling key")
     s.add_argument("--out", required=True, help="output folder: futures.npz, future_NN.bvh, samples.gif")
+    s = sub.add_parser("export", help="write a trained run as one inference-only model file (for jaxmotion.load and predict --model)")
+    s.add_argument("run_dir", help="a trained work directory (with predictor.json)")
+    s.add_argument("--out", required=True, help="the model file to write (e.g. model.msgpack)")
+    s.add_argument("--stages", nargs="+", default=None, help="only these stages (default: all), e.g. cvae: DLow's sampler without its Q networks")
     s = sub.add_parser("view", help="one self-contained HTML page to browse test windows and their K futures in 3-D (needs plotly)")
     s.add_argument("run_dir", nargs="?", default=None, help="a trained work directory (default: --workdir, else runs/<config name>)")
     s.add_argument("--config", default=None, help="config file that rebuilds the test windows (default: the run's own, from predictor.json)")
@@ -107,6 +127,8 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--k", type=_int_at_least(1), default=10, help="futures per window (default 10)")
     s.add_argument("--method", default=None, help="which predictor (default: the run's method)")
     s.add_argument("--seed", type=_int_at_least(0), default=0, help="seed of the sampling key")
+    s.add_argument("--keep-skeleton", action="store_true",
+                   help="put each future on its window's observed bone lengths (as predict writes them); default: the model's output")
     return p
 
 
@@ -135,18 +157,20 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "methods":
         return _list_methods()
     if args.command == "predict":
-        from jaxmotion.predict_file import predict_file
-        from jaxmotion.predictor import load
+        return _predict(args)
+    if args.command == "export":
+        from jaxmotion.predictor import export
 
         try:
-            lines = predict_file(load(args.run_dir), args.input, args.out, frame=args.frame, k=args.k, method=args.method,
-                                 seed=args.seed, scale=args.scale)
-        except USER_ERRORS as e:  # the user's file or run: the message says it all
-            return _report(e, "jaxmotion predict")
-        print("\n".join(lines))
+            path = export(args.run_dir, args.out, tuple(args.stages) if args.stages else None)
+        except USER_ERRORS as e:
+            return _report(e, "jaxmotion export")
+        print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB): jaxmotion predict --model {path} CLIP --out DIR")
         return 0
     if args.command == "view":
         return _view(args)
+    if args.command == "eval" and args.model is not None:
+        return _eval_model(args)
     from jaxmotion import distributed
 
     if args.command in ("run", "train", "eval"):  # before anything runs on a device
@@ -155,6 +179,8 @@ def main(argv: list[str] | None = None) -> int:
 
     cfg = load_config(args.config)
     source = args.config or "the default config"
+    if getattr(args, "scale", None) is not None:
+        cfg = _with_scale(cfg, args.scale, args.data)
     cfg = _with_overrides(cfg, args, source)
     part_control = _part_control(cfg, args.method) if args.command == "sample" and args.fix_part else None
     workdir = Path(args.workdir or Path("runs") / cfg.name).absolute()
@@ -193,7 +219,7 @@ def _run(args, cfg, workdir: Path, part_control, source: str) -> int:
     label = ds.name
     print(
         f"data: {ds.name}: {len(ds.train)} train / {len(ds.test)} test sequences, D={ds.dim}, "
-        f"{ds.t_his}->{ds.t_pred} frames at {ds.fps:g} fps, {prep.sampler.num_windows} train windows, "
+        f"{ds.t_his}->{ds.t_pred} frames at {round(ds.fps, 2):g} fps, {prep.sampler.num_windows} train windows, "
         f"{len(prep.windows)} test windows ({time.perf_counter() - t0:.1f}s)",
         flush=True,
     )
@@ -242,6 +268,65 @@ def _run(args, cfg, workdir: Path, part_control, source: str) -> int:
     return 0
 
 
+def _with_scale(cfg, values: list[str], data: str | None):
+    """Returns `cfg` with `--scale` in its data options (`data.units.parse_scale`); exits if the data is not a plain BVH folder."""
+    import dataclasses
+
+    from jaxmotion.data.units import parse_scale
+    from jaxmotion.experiment import plain_bvh_folder
+
+    spec = data or cfg.dataset
+    if not plain_bvh_folder(Path(spec).expanduser()):
+        raise SystemExit(f"--scale applies to a plain folder of BVH files; {spec} is not one (its loader knows its units)")
+    try:
+        scale = parse_scale(values)
+    except ValueError as e:
+        raise SystemExit(str(e)) from None
+    return dataclasses.replace(cfg, data_options={**cfg.data_options, "scale": scale})
+
+
+def _eval_model(args) -> int:
+    """`jaxmotion eval --model M --data FOLDER`: every clip of the folder a test clip (`jaxmotion.evaluate_folder`)."""
+    from jaxmotion.data.units import parse_scale
+    from jaxmotion.evaluate_folder import evaluate_folder
+    from jaxmotion.joint_maps import read_joint_map
+    from jaxmotion.predictor import load
+
+    if args.data is None or args.config is not None:
+        raise SystemExit("jaxmotion eval --model M: give the folder of clips with --data FOLDER (and no --config: the model has one)")
+    workdir = Path(args.workdir or Path("runs") / f"eval_{Path(args.data).name}")
+    try:
+        scale = parse_scale(args.scale)
+    except ValueError as e:
+        raise SystemExit(str(e)) from None
+    joint_map = read_joint_map(args.joint_map) if args.joint_map else None
+    lines = evaluate_folder(load(args.model), args.data, workdir, k=args.k, scale=scale, joint_map=joint_map, seed=args.seed)
+    print("\n".join(lines))
+    return 0
+
+
+def _predict(args) -> int:
+    """`jaxmotion predict`: the model from --model or the first path, the clip from --input or the last path."""
+    from jaxmotion.joint_maps import read_joint_map
+    from jaxmotion.predict_file import predict_file
+    from jaxmotion.predictor import load
+
+    paths = list(args.paths)
+    model = args.model if args.model is not None else (paths.pop(0) if paths else None)
+    clip = args.input if args.input is not None else (paths.pop(0) if paths else None)
+    if model is None or clip is None or paths:
+        raise SystemExit("jaxmotion predict: give a model (--model NAME|FILE, or a run directory) and one clip, e.g. "
+                         "jaxmotion predict --model bandai clip.bvh --out futures/")
+    try:
+        joint_map = read_joint_map(args.joint_map) if args.joint_map else None
+        lines = predict_file(load(model), clip, args.out, frame=args.frame, k=args.k, method=args.method,
+                             seed=args.seed, scale=args.scale, joint_map=joint_map)
+    except USER_ERRORS as e:  # the user's file or run: the message says it all
+        return _report(e, "jaxmotion predict")
+    print("\n".join(lines))
+    return 0
+
+
 def _view(args) -> int:
     """`jaxmotion view`: writes the page (`jaxmotion.viewer.view_run`); a bad run, file or option is one line, exit code 2."""
     run_dir = args.run_dir or args.workdir
@@ -255,7 +340,7 @@ def _view(args) -> int:
         from jaxmotion.viewer import view_run
 
         lines = view_run(run_dir, args.out, windows=args.windows, k=args.k, method=args.method, seed=args.seed,
-                         config=args.config, data=args.data, test_files=args.test_files)
+                         config=args.config, data=args.data, test_files=args.test_files, keep_skeleton=args.keep_skeleton)
     except ModuleNotFoundError as e:
         if e.name != "plotly":
             raise

@@ -67,7 +67,7 @@ def _load_split(cfg: Config, data: str | None, test_files: list[str] | None) -> 
         return make_synthetic(cfg.seed)
     path = Path(spec).expanduser()
     options = dict(cfg.data_options)
-    if _plain_bvh_folder(path) and "split" not in options:
+    if plain_bvh_folder(path) and "split" not in options:
         split, how = folder_split(path, test_files)
         ds = load_dataset(spec, split=lambda f: split.get(f, "test"), **options)
         ds.info["split"] = how
@@ -77,7 +77,7 @@ def _load_split(cfg: Config, data: str | None, test_files: list[str] | None) -> 
     return load_dataset(spec, **options)
 
 
-def _plain_bvh_folder(path: Path) -> bool:
+def plain_bvh_folder(path: Path) -> bool:
     """Returns whether `path` is a folder of BVH files that no dataset protocol (Bandai-Namco-2) claims."""
     if not path.is_dir() or (path / BANDAI_TARBALL).is_file() or any(path.glob("dataset-2_*.bvh")):
         return False
@@ -89,7 +89,7 @@ class Prepared:
     """Frame vectors for training and the protocol test windows of one dataset."""
 
     dataset: MotionDataset
-    sampler: TrainSampler
+    sampler: TrainSampler | None  # None for a test-only preparation (`prepare(test_only=True)`)
     windows: np.ndarray  # (N, t_total, D)
     seq_index: np.ndarray
     starts: np.ndarray
@@ -105,18 +105,19 @@ class Prepared:
         return self.windows[:, self.dataset.t_his :]
 
 
-def prepare(ds: MotionDataset, max_test_windows: int | None = None, train_sampler: str = "windows") -> Prepared:
+def prepare(ds: MotionDataset, max_test_windows: int | None = None, train_sampler: str = "windows", test_only: bool = False) -> Prepared:
     """Returns train sampler and test windows (PROTOCOL sec. 3: test stride t_his, random train starts).
 
     `train_sampler` weights the training windows (`TrainSampler`): "windows" (each equally likely)
-    or "sequences" (DLow's release: a sequence uniformly, then a start).
+    or "sequences" (DLow's release: a sequence uniformly, then a start). `test_only`: no training
+    windows are needed (the sampler is None), e.g. to evaluate a trained model on a new folder.
 
     Marker datasets' windows are canonicalised at their first frame (PROTOCOL sec. 4).
     """
     train, train_canon = split_frames(ds, "train")
     test, test_canon = split_frames(ds, "test")
-    check_lengths(ds, train, test, train_sampler)
-    sampler = TrainSampler(train, ds.t_total, train_canon, weighting=train_sampler)
+    check_lengths(ds, train, test, train_sampler, test_only)
+    sampler = None if test_only else TrainSampler(train, ds.t_total, train_canon, weighting=train_sampler)
     windows, seq_index, starts = test_windows(test, ds.t_his, ds.t_pred)
     if test_canon is not None:
         windows = canonicalise_windows(windows, np.stack([test_canon[i][s] for i, s in zip(seq_index, starts)]))
@@ -128,19 +129,21 @@ def prepare(ds: MotionDataset, max_test_windows: int | None = None, train_sample
     return Prepared(ds, sampler, windows, seq_index, starts, keep, train if train_canon is None else None)
 
 
-def check_lengths(ds: MotionDataset, train: list[np.ndarray], test: list[np.ndarray], train_sampler: str = "windows") -> None:
+def check_lengths(
+    ds: MotionDataset, train: list[np.ndarray], test: list[np.ndarray], train_sampler: str = "windows", test_only: bool = False
+) -> None:
     """Raises `DataError` saying how many sequences there are, how long the longest is and what the protocol needs,
-    when no training window or no test window fits (PROTOCOL sec. 3: test windows need T > t_total)."""
+    when no training window (unless `test_only`) or no test window fits (PROTOCOL sec. 3: test windows need T > t_total)."""
     if train_sampler not in SAMPLER_WEIGHTINGS:
         return  # TrainSampler names the choices
     need = ds.t_total + (1 if train_sampler == "sequences" else 0)
-    if any(len(f) >= need for f in train) and any(len(f) > ds.t_total for f in test):
+    if (test_only or any(len(f) >= need for f in train)) and any(len(f) > ds.t_total for f in test):
         return
     longest = lambda fs: max((len(f) for f in fs), default=0)  # noqa: E731
-    which = "training" if not any(len(f) >= need for f in train) else "test"
+    which = "training" if not test_only and not any(len(f) >= need for f in train) else "test"
     hint = ""
     if "split" in ds.info:
-        hint = f" Split: {ds.info['split']}. Choose other test files with --test-files, or train at a lower frame rate (data_options={{'downsample': 4}}) or with shorter windows (data_options t_his / t_pred)."
+        hint = f" Split: {ds.info['split']}. Choose other test files with --test-files, or train at a lower frame rate (data_options={{'fps': 30}}) or with shorter windows (data_options t_his / t_pred)."
     raise DataError(
         ds.info.get("source", ds.name),
         f"no {which} window fits: {len(ds.train)} training sequences (longest {longest(train)} frames) and "
@@ -328,11 +331,14 @@ def action_evaluator(cfg: Config, prep: Prepared) -> action_metrics.ActionEvalua
     return action_metrics.evaluator(prep.dataset, prep.y, prep.seq_index, prep.starts, config=c, batch=cfg.eval_batch)
 
 
-def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str | None = None) -> list[dict]:
+def evaluate(
+    cfg: Config, prep: Prepared, params, workdir: Path, data_label: str | None = None, manifest: bool = True
+) -> list[dict]:
     """Returns and writes (`workdir/metrics.json`) one PROTOCOL sec. 5 record per (predictor, K).
 
     Mode recall is added where the dataset knows its test windows' futures (`MotionDataset.known_modes`),
-    and the method's `extra_metrics` where it has them.
+    and the method's `extra_metrics` where it has them. `manifest`: write `predictor.json` when the
+    work directory has none (False when `workdir` holds the evaluation of a model trained elsewhere).
     """
     ds = prep.dataset
     method = get_method(cfg.method)
@@ -358,7 +364,7 @@ def evaluate(cfg: Config, prep: Prepared, params, workdir: Path, data_label: str
         mm, thr, ref_futures = ref.sets, None, ref.futures
         if ref.transfer_parents is not None:
             transfer = dict(transfer_poses=ref.transfer_poses, transfer_parents=ref.transfer_parents)
-    if not (workdir / "predictor.json").exists():  # a run trained before `predictor.json` existed
+    if manifest and not (workdir / "predictor.json").exists():  # a run trained before `predictor.json` existed
         from jaxmotion.predictor import write_manifest
 
         write_manifest(cfg, ds, workdir)

@@ -3,14 +3,20 @@
     jaxmotion predict runs/dlow_synthetic --input clip.bvh --k 5 --out futures/
 
 `read_motion` reads a BVH clip (forward kinematics, units guessed as `formats.bvh.guess_scale` does
-unless `scale` is given) or an npz of joint positions (`positions` (T, J, 3), optional `names`,
+unless `scale` is given, and checked against a person's size, `data.units`) or an npz of joint positions (`positions` (T, J, 3), optional `names`,
 `fps`, `scale` (metres per unit, default 1), `up_axis`), or a C3D marker file (labels without
-the `Subject:` prefix, metres, NaN at gaps: a marker model's input, `predict_markers`). `to_layout`
-matches joints by name (an error lists the missing and the extra joints), converts to metres,
-turns the up axis onto the model's, resamples a different frame rate by linear interpolation of
-joint positions and makes frames root-relative with the root dropped. `predict_file` writes `futures.npz`, one BVH per future on the
-input's own skeleton (`retarget.fit_bvh`: the observed frames, then the future, the root held at
-its last observed place since the models predict root-relative motion) and `samples.gif`.
+the `Subject:` prefix, metres, NaN at gaps: a marker model's input, `predict_markers`). `predict_file`
+converts to metres, turns the up axis onto the model's, resamples a different frame rate by linear interpolation of
+joint positions and makes frames root-relative with the root dropped. Joints are matched by
+`joint_maps.match_skeleton`: a `--joint-map`, the same names, or a built-in convention (CMU,
+Mixamo, LAFAN1, SMPL, Bandai-Namco), the file's hierarchy checked against the model's.
+
+`predict_file` puts every future on the input's own skeleton (`retarget.fit_bvh`: the observed
+frames, then the future, the root held at its last observed place since the models predict
+root-relative motion; each joint's rotation points its bones along the predicted ones) and writes
+one BVH per future, `futures.npz` and `samples.gif`, all three showing that motion: `futures` and
+`joints` in the npz are the forward kinematics of the BVH files (the input's bone lengths), and
+`futures_raw` / `joints_raw` the model's output as it came.
 """
 
 from __future__ import annotations
@@ -21,12 +27,14 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from jaxmotion.data.units import body_size, file_scales
 from jaxmotion.errors import DataError, UsageError
 from jaxmotion.formats.atomic import savez_atomic
-from jaxmotion.formats.bvh import MAX_JOINTS, Bvh, forward_kinematics, guess_scale, read_bvh
+from jaxmotion.formats.bvh import MAX_JOINTS, Bvh, forward_kinematics, read_bvh
 from jaxmotion.formats.bvh_write import read_end_sites, write_bvh
 from jaxmotion.data.windows import resample  # noqa: F401 (also part of this module's interface)
 from jaxmotion.formats.c3d import read_c3d
+from jaxmotion.joint_maps import match_skeleton
 from jaxmotion.predict_markers import predict_markers
 from jaxmotion.predictor import MotionPredictor
 from jaxmotion.retarget import bvh_from_positions, fit_bvh
@@ -53,9 +61,12 @@ def read_motion(path: str | Path, scale: float | None = None) -> Motion:
         raise FileNotFoundError(f"{path}: no such file")
     if path.suffix.lower() == ".bvh":
         bvh = read_bvh(path)
-        s = guess_scale(bvh) if scale is None else scale
-        notes = [f"units: {s:g} m per file unit ({'guessed from the skeleton' if scale is None else '--scale'})"]
-        return _checked(Motion(path, bvh.names, forward_kinematics(bvh) * _scale(path, s), bvh.fps, s, 1, bvh, notes))
+        if scale is not None:
+            _scale(path, scale)  # a negative scale would mirror the body
+        s = file_scales({path: bvh}, scale, path.parent)[path]  # guessed or given, checked against a person's size
+        notes = [f"units: {s:g} m per file unit ({'guessed from the skeleton' if scale is None else '--scale'}), "
+                 f"a body {body_size(bvh) * s:.2f} m across"]
+        return _checked(Motion(path, bvh.names, forward_kinematics(bvh) * s, bvh.fps, s, 1, bvh, notes))
     if path.suffix.lower() == ".c3d":  # markers, NaN at gaps, for marker models (`predict_markers`)
         rec = read_c3d(path)
         s = {"mm": 1e-3, "cm": 1e-2, "dm": 0.1, "m": 1.0}[rec.units]
@@ -106,8 +117,9 @@ def _checked(m: Motion, unique_names: bool = True) -> Motion:
     return m
 
 
-def match_joints(motion: Motion, joints: list[str]) -> np.ndarray:
-    """Returns the input joint index of each model joint, or raises `DataError` listing the missing and extra joints."""
+def match_joints(motion: Motion, joints: list[str], parents: list[int] | None = None, joint_map: dict[str, str] | None = None) -> np.ndarray:
+    """Returns the input joint index of each model joint (`joint_maps.match_skeleton`: a joint map, the names, or a built-in
+    convention; the BVH's hierarchy checked against `parents`), or raises `DataError` saying what differs."""
     if motion.names is None:
         if motion.positions.shape[1] != len(joints):
             raise DataError(
@@ -116,16 +128,14 @@ def match_joints(motion: Motion, joints: list[str]) -> np.ndarray:
             )
         motion.notes.append("joints: unnamed, taken in the model's order")
         return np.arange(len(joints))
-    missing = [n for n in joints if n not in motion.names]
-    extra = [n for n in motion.names if n not in joints]
-    if missing:
-        raise DataError(
-            motion.path, f"skeleton does not match the model's: missing joints {missing}; extra joints {extra} "
-            f"(the model has {len(joints)} joints: {joints})"
-        )
+    file_parents = motion.bvh.parents if motion.bvh is not None and parents is not None else None
+    mapping, how = match_skeleton(joints, parents, motion.names, file_parents, joint_map, where=motion.path)
+    if how != "joints: matched by name":
+        motion.notes.append(how)
+    extra = [n for n in motion.names if n not in mapping.values()]
     if extra:
         motion.notes.append(f"joints: {len(extra)} not in the model ignored ({extra})")
-    return np.array([motion.names.index(n) for n in joints])
+    return np.array([motion.names.index(mapping[n]) for n in joints])
 
 
 def _roll(p: np.ndarray, shift: int) -> np.ndarray:
@@ -135,6 +145,7 @@ def _roll(p: np.ndarray, shift: int) -> np.ndarray:
 def predict_file(
     model: MotionPredictor, path: str | Path, out: str | Path, *, frame: int | None = None, k: int | None = None,
     method: str | None = None, seed: int = 0, scale: float | None = None, gif: bool = True,
+    joint_map: dict[str, str] | None = None,
 ) -> list[str]:
     """Writes the K futures of the window of `path` ending at input frame `frame` to `out`; returns the lines to print.
 
@@ -149,7 +160,7 @@ def predict_file(
     if lay["frames"] != "root_relative":
         raise DataError(path, f"the model predicts {lay['frames']} frames; predict from a file supports joint and marker models")
     motion = read_motion(path, scale)
-    idx = match_joints(motion, lay["joints"])
+    idx = match_joints(motion, lay["joints"], lay["parents"], joint_map)
     pos = motion.positions
     notes = motion.notes
     shift = 0
@@ -168,7 +179,7 @@ def predict_file(
     if abs(ratio - 1) > 0.01:
         pos = resample(pos, fps_in, fps, str(motion.path))
         notes.append(
-            f"frame rate: resampled from {fps_in:g} to {fps:g} fps by linear interpolation of joint positions "
+            f"frame rate: resampled from {round(fps_in, 2):g} to {round(fps, 2):g} fps by linear interpolation of joint positions "
             f"({n_in} -> {pos.shape[0]} frames); --frame counts input frames"
         )
     else:
@@ -192,56 +203,69 @@ def predict_file(
     if method is None:
         method = model.main_method(k)
         if method != model.config.method:
-            notes.append(f"method: {model.config.method!r} has no predictor at K={k} (trained K: {tuple(model.config.eval_k)}); using {method!r}")
+            notes.append(f"method: {model.config.method!r} has no predictor at K={k} in this model (trained K: "
+                         f"{tuple(model.config.eval_k)}; stages here: {sorted(model.params)}); using {method!r}")
     futures = model.predict(x, k, jax.random.key(seed), method)  # (K, t_pred, D)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
 
     # World joint positions of observed + future frames, the root held at its last observed place.
     root = joints[end, 0]
-    fut_j = np.concatenate([np.zeros((k, t_pred, 1, 3)), futures.reshape(k, t_pred, -1, 3)], axis=2) + root
+    raw_j = np.concatenate([np.zeros((k, t_pred, 1, 3)), futures.reshape(k, t_pred, -1, 3)], axis=2) + root
     obs_j = joints[end + 1 - t_his : end + 1]
-    # Back to the input's world and units for the BVH files, all built before anything is written.
-    to_file = lambda p: _roll(p, -shift) / motion.scale  # noqa: E731
+    to_file = lambda p: _roll(p, -shift) / motion.scale  # noqa: E731  (the input's world and units)
+    from_file = lambda p: _roll(p * motion.scale, shift)  # noqa: E731
     if motion.bvh is not None:
         template = dataclasses.replace(motion.bvh, frame_time=1.0 / fps)
         known = np.zeros(template.num_joints, bool)
         known[idx] = True
-        ref = int(round(end / ratio))
-        end_sites = read_end_sites(motion.path)
-        ref_motion = template.motion[min(ref, template.num_frames - 1)]
-    else:
-        names, parents, end_sites = tuple(lay["joints"]), tuple(lay["parents"]), None
-    bvhs = []
+        # Reference pose (twist, joints the model does not predict): the input's frame at the window's end.
+        ref_motion = template.motion[min(int(round(end / ratio)), template.num_frames - 1)]
+        tpl = dataclasses.replace(template, motion=ref_motion[None])
+    fitted, kept = [], []
     for i in range(k):
-        seq = to_file(np.concatenate([obs_j, fut_j[i]]))  # (t_his + t_pred, J_model, 3)
+        seq = to_file(np.concatenate([obs_j, raw_j[i]]))  # (t_his + t_pred, J_model, 3)
         if motion.bvh is not None:
             targets = np.zeros((seq.shape[0], template.num_joints, 3))
             targets[:, idx] = seq
-            # Reference pose (twist, joints the model does not predict): the input's frame at the window's end.
-            tpl = dataclasses.replace(template, motion=ref_motion[None])
             try:
-                bvhs.append(fit_bvh(tpl, targets, known, reference_frame=0))
+                b = fit_bvh(tpl, targets, known, reference_frame=0)
             except ValueError as e:  # a joint that cannot rotate (CHANNELS 0) but must to follow the future
                 raise DataError(motion.path, f"the futures cannot be written on this skeleton ({e}); nothing was written") from None
-        else:
-            bvhs.append(bvh_from_positions(names, parents, seq, fps, rest_frame=t_his - 1))
-    savez_atomic(
-        out / "futures.npz", futures=futures, observed=x, ground_truth=gt if gt is not None else np.zeros((0,) + x.shape[1:]),
-        joints=fut_j.astype(np.float32), observed_joints=obs_j.astype(np.float32), names=np.array(lay["joints"]),
-        parents=np.array(lay["parents"]), fps=fps, t_his=t_his, t_pred=t_pred, method=method, k=k, end_frame=end,
-        input=str(motion.path), notes="\n".join(notes),
+            kept.append(from_file(forward_kinematics(b)[:, idx]))
+        else:  # the skeleton of the last observed frame
+            b = bvh_from_positions(tuple(lay["joints"]), tuple(lay["parents"]), seq, fps, rest_frame=t_his - 1)
+            kept.append(from_file(forward_kinematics(b)))
+        fitted.append(b)
+    # What the BVH files show: the predicted bone directions on the input's bone lengths (`retarget.fit_bvh`).
+    kept_j = np.stack(kept)[:, t_his:]  # (K, t_pred, J, 3)
+    kept_f = (kept_j[:, :, 1:] - kept_j[:, :, :1]).reshape(k, t_pred, -1).astype(np.float32)
+    moved = np.linalg.norm(kept_j - raw_j, axis=-1)
+    notes.append(
+        f"skeleton: futures put on the input's bone lengths (the BVH files, 'futures' and 'joints' in futures.npz); "
+        f"joints moved {100 * moved.mean():.1f} cm on average, {100 * moved.max():.1f} cm at most, from the model's "
+        "output ('futures_raw')"
     )
-    written = [out / "futures.npz"] + [write_bvh(out / f"future_{i:02d}.bvh", b, end_sites) for i, b in enumerate(bvhs)]
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    savez_atomic(
+        out / "futures.npz", futures=kept_f, futures_raw=futures, observed=x,
+        ground_truth=gt if gt is not None else np.zeros((0,) + x.shape[1:]),
+        joints=kept_j.astype(np.float32), joints_raw=raw_j.astype(np.float32), observed_joints=np.stack(kept)[0, :t_his].astype(np.float32),
+        names=np.array(lay["joints"]), parents=np.array(lay["parents"]), fps=fps, t_his=t_his, t_pred=t_pred, method=method,
+        k=k, end_frame=end, input=str(motion.path), notes="\n".join(notes),
+    )
+    written = [out / "futures.npz"]
+    end_sites = read_end_sites(motion.path) if motion.bvh is not None else None
+    for i, b in enumerate(fitted):
+        written.append(write_bvh(out / f"future_{i:02d}.bvh", b, end_sites))
     if gif:
         from jaxmotion.animate import animate_futures
 
         written.append(animate_futures(
-            x, futures, gt, tuple(lay["parents"]), out / "samples.gif", fps=fps,
+            x, kept_f, gt, tuple(lay["parents"]), out / "samples.gif", fps=fps,
             title=f"{motion.path.name}: frames {end + 1 - t_his}-{end} observed, {method}, K={k}",
         ))
     lines = [
-        f"input: {motion.path} ({n_in} frames at {motion.fps or fps:g} fps, {len(motion.names or idx)} joints)",
+        f"input: {motion.path} ({n_in} frames at {round(motion.fps or fps, 2):g} fps, {len(motion.names or idx)} joints)",
         f"model: {model.run_dir} ({model.manifest['dataset']['name']}, {model.config.method}; {len(lay['joints'])} joints, "
         f"{t_his} -> {t_pred} frames at {fps:g} fps)",
         *[f"note: {s}" for s in notes],

@@ -3,6 +3,7 @@
     model = jaxmotion.load("runs/dlow_synthetic")
     model.methods                                   # ['cvae', 'dlow', 'zero_velocity'] at the default K
     futures = model.predict(x, k=50, key=jax.random.key(0))   # x (t_his, D) -> (50, t_pred, D)
+    export("runs/dlow_synthetic", "dlow.msgpack")   # one inference-only file; load("dlow.msgpack"), load("bandai") (shipped)
 
 Training writes `predictor.json` beside the stage folders (`write_manifest`): the config, the
 skeleton (joint names, parents, median bone lengths), the frame layout (joints kept, root dropped,
@@ -73,13 +74,19 @@ def write_manifest(cfg: Config, ds: MotionDataset, workdir: str | Path, data: st
     manifest = {
         "version": VERSION,
         "method": cfg.method,
-        "dataset": {"name": ds.name, "source": data or ds.info.get("source") or cfg.dataset, "options": dict(cfg.data_options)},
+        "dataset": {"name": ds.name, "source": _absolute(data or ds.info.get("source") or cfg.dataset), "options": dict(cfg.data_options)},
         "layout": layout(ds),
         "bone_lengths": bone_lengths(ds),
         "config": to_dict(cfg),
     }
     path = workdir / MANIFEST
     return write_text_atomic(path, json.dumps(manifest, indent=1, default=_json_default))
+
+
+def _absolute(source: str) -> str:
+    """Returns a data path made absolute where it exists (so a run's data is found from any folder); other sources unchanged."""
+    p = Path(str(source)).expanduser()
+    return str(p.resolve()) if p.exists() else str(source)
 
 
 def _json_default(v):
@@ -154,7 +161,6 @@ class MotionPredictor:
     """A trained run: `predict(x, k, key)` draws K futures of frames in the model's layout (`layout`)."""
 
     def __init__(self, run_dir: str | Path, stages: tuple[str, ...] | None = None):
-        from jaxmotion.methods import get_method
         from jaxmotion.train.runner import MANIFEST as STAGE_MANIFEST
         from jaxmotion.train.runner import restore_untargeted
 
@@ -166,22 +172,9 @@ class MotionPredictor:
                 "or it was trained before predictor.json existed: `jaxmotion eval` on it writes it"
             )
         try:
-            self.manifest = json.loads(path.read_text())
-            self.layout = self.manifest["layout"]
-            self.config = config_from_dict(self.manifest["config"])
+            self._setup(json.loads(path.read_text()))
         except (ValueError, KeyError, TypeError) as e:  # cut short, edited by hand, or another program's file
             raise CheckpointError(f"{path}: unreadable ({type(e).__name__}: {e}); `jaxmotion eval` on the run writes it again") from None
-        self.method = get_method(self.config.method)
-        lay = self.layout
-        self.skeleton = Skeleton(tuple(lay["joints"]), tuple(lay["parents"]))
-        # A dataset without sequences: what the methods' predictors read (skeleton, lengths, fps, info).
-        info = {"frames": "global"} if lay["frames"] == "global" else {}
-        if lay.get("up_axis") is not None:
-            info["up_axis"] = lay["up_axis"]
-        self.dataset = MotionDataset(
-            name=self.manifest["dataset"]["name"], skeleton=self.skeleton, fps=lay["fps"], t_his=lay["t_his"],
-            t_pred=lay["t_pred"], mm_threshold=lay["mm_threshold"], train=[], test=[], info=info,
-        )
         self.params = {}
         for d in sorted(self.run_dir.iterdir()):
             m = d / STAGE_MANIFEST
@@ -193,6 +186,33 @@ class MotionPredictor:
             raise CheckpointError(f"{self.run_dir}: no trained stage of method {self.method.name!r}")
         if stages is not None and set(stages) - set(self.params):
             raise CheckpointError(f"{self.run_dir}: stage(s) {sorted(set(stages) - set(self.params))} not trained")
+
+    @classmethod
+    def from_parts(cls, manifest: dict, params: dict, source: str | Path) -> MotionPredictor:
+        """Returns the predictor of a `predictor.json` dict and `{stage: parameters}` (an exported model, `read_model`)."""
+        self = cls.__new__(cls)
+        self.run_dir = Path(source)
+        self._setup(manifest)
+        self.params = dict(params)
+        return self
+
+    def _setup(self, manifest: dict) -> None:
+        from jaxmotion.methods import get_method
+
+        self.manifest = manifest
+        self.layout = self.manifest["layout"]
+        self.config = config_from_dict(self.manifest["config"])
+        self.method = get_method(self.config.method)
+        lay = self.layout
+        self.skeleton = Skeleton(tuple(lay["joints"]), tuple(lay["parents"]))
+        # A dataset without sequences: what the methods' predictors read (skeleton, lengths, fps, info).
+        info = {"frames": "global"} if lay["frames"] == "global" else {}
+        if lay.get("up_axis") is not None:
+            info["up_axis"] = lay["up_axis"]
+        self.dataset = MotionDataset(
+            name=self.manifest["dataset"]["name"], skeleton=self.skeleton, fps=lay["fps"], t_his=lay["t_his"],
+            t_pred=lay["t_pred"], mm_threshold=lay["mm_threshold"], train=[], test=[], info=info,
+        )
         self._fns: dict[int, dict] = {}
 
     @property
@@ -263,9 +283,77 @@ class MotionPredictor:
 
 
 def load(run_dir: str | Path, stages: tuple[str, ...] | None = None) -> MotionPredictor:
-    """Returns the trained run at `run_dir` as a `MotionPredictor` (needs only the run directory).
+    """Returns a trained model as a `MotionPredictor`: a run directory, an exported file (`export`) or a shipped model's name.
 
-    `stages` restores only those stages (a CheckpointError names any without a checkpoint): e.g. a
-    GSPS run's `("prior", "angle_bounds")` for `validity.from_gsps_run`, before its generator is trained.
+    `stages` restores only those stages of a run directory (a CheckpointError names any without a
+    checkpoint): e.g. a GSPS run's `("prior", "angle_bounds")` for `validity.from_gsps_run`, before its
+    generator is trained. `PRETRAINED` lists the shipped models (`jaxmotion predict --model bandai`).
     """
-    return MotionPredictor(run_dir, stages)
+    path = Path(run_dir)
+    if str(run_dir) in PRETRAINED and not path.exists():
+        path = pretrained_path(str(run_dir))
+    if path.is_file():
+        if stages is not None:
+            raise ValueError(f"load: {path} is an exported model; it holds every stage (stages= is for run directories)")
+        return read_model(path)
+    if not path.exists() and not path.suffix and "/" not in str(run_dir):
+        raise FileNotFoundError(f"{run_dir}: no such run directory, exported model or shipped model (shipped: {sorted(PRETRAINED)})")
+    return MotionPredictor(path, stages)
+
+
+# ----------------------------------------------------------------------------------------------
+# Exported models: one file with the parameters (no optimiser state) and what predictor.json holds.
+
+EXPORT_FORMAT = "jaxmotion-model"
+# Shipped models: name -> file in jaxmotion/pretrained/ (its README states the data, the command and the licence).
+PRETRAINED = {"bandai": "bandai.msgpack"}
+
+
+def pretrained_path(name: str) -> Path:
+    """Returns the file of the shipped model `name` (`PRETRAINED`)."""
+    if name not in PRETRAINED:
+        raise FileNotFoundError(f"{name}: not a shipped model (shipped: {sorted(PRETRAINED)})")
+    path = Path(__file__).resolve().parent / "pretrained" / PRETRAINED[name]
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: the shipped model {name!r} is missing from this installation")
+    return path
+
+
+def export(run_dir: str | Path, out: str | Path, stages: tuple[str, ...] | None = None) -> Path:
+    """Writes the trained run at `run_dir` as one inference-only file (msgpack: predictor.json's contents, the parameters
+    of every stage, or of `stages`, and their shapes) and returns its path; `load` and `jaxmotion predict` accept it."""
+    from flax import serialization
+
+    from jaxmotion.train.runner import param_shapes
+
+    model = MotionPredictor(run_dir, stages)
+    params = {stage: jax.tree.map(np.asarray, p) for stage, p in model.params.items()}
+    payload = {
+        "format": EXPORT_FORMAT, "version": VERSION, "predictor": json.dumps(model.manifest),
+        "shapes": json.dumps({stage: param_shapes(p) for stage, p in params.items()}), "params": params,
+    }
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(out.name + ".tmp")
+    tmp.write_bytes(serialization.msgpack_serialize(payload))
+    tmp.replace(out)
+    return out
+
+
+def read_model(path: str | Path) -> MotionPredictor:
+    """Returns the `MotionPredictor` of an exported file (`export`); `CheckpointError` if it is not one or is damaged."""
+    from flax import serialization
+
+    from jaxmotion.train.runner import param_shapes
+
+    path = Path(path)
+    try:
+        payload = serialization.msgpack_restore(path.read_bytes())
+    except Exception as e:  # msgpack raises several types on a truncated or foreign file
+        raise CheckpointError(f"{path}: not an exported jaxmotion model ({type(e).__name__}: {e})") from None
+    if not isinstance(payload, dict) or payload.get("format") != EXPORT_FORMAT:
+        raise CheckpointError(f"{path}: not an exported jaxmotion model (jaxmotion export RUN --out FILE writes one)")
+    params = {stage: jax.tree.map(jnp.asarray, p) for stage, p in payload["params"].items()}
+    if json.loads(payload["shapes"]) != {stage: param_shapes(p) for stage, p in params.items()}:
+        raise CheckpointError(f"{path}: its parameters do not match the shapes it lists (damaged file?)")
+    return MotionPredictor.from_parts(json.loads(payload["predictor"]), params, path)

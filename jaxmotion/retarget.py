@@ -91,9 +91,10 @@ def fit_bvh(bvh: Bvh, targets: np.ndarray, known: np.ndarray, reference_frame: i
 
     Joints solved parents first (module docstring): the topmost known joint with position channels is
     moved onto its target (other position channels keep the reference frame's values; `move` (J,) names
-    the joints to move instead, e.g. both a ground node and the hips it carries); every known joint's rotation points its known child bones along the target
-    bones (`targets[c] - targets[j]`); other joints keep the local rotations and translations of
-    `reference_frame` (fingers a model does not predict, a ground node above the model's root).
+    the joints to move instead, e.g. both a ground node and the hips it carries); every known joint's
+    rotation points its nearest known descendants along the target bones (`targets[c] - targets[j]`);
+    other joints keep the local rotations and translations of `reference_frame` (fingers a model does
+    not predict, a ground node above the model's root, CMU's `LHipJoint` between two predicted joints).
     """
     targets = np.asarray(targets, np.float64)
     known = np.asarray(known, bool)
@@ -128,15 +129,36 @@ def fit_bvh(bvh: Bvh, targets: np.ndarray, known: np.ndarray, reference_frame: i
             trans[j] = t
         p[:, j] = pp + np.einsum("fij,fj->fi", gp, t)
         start = gp @ ref_r[j]
-        # Child bones that constrain this rotation: known children at a non-zero offset that are not moved on their own.
-        cs = [c for c in children[j] if known[c] and not movable[c] and np.linalg.norm(ref_t[c]) > 1e-9]
+        # What constrains this rotation: the nearest known descendants (through joints the targets leave out,
+        # which keep the reference pose, like CMU's LHipJoint) at a non-zero offset, not moved on their own.
+        u, cs = _known_descendants(j, children, known, movable, ref_r, ref_t)
         if known[j] and cs:
-            g[:, j] = solve_rotation(start, ref_t[cs], targets[:, cs] - targets[:, j : j + 1])
+            g[:, j] = solve_rotation(start, u, targets[:, cs] - targets[:, j : j + 1])
         else:
             g[:, j] = start
         local_r[:, j] = np.swapaxes(gp, -1, -2) @ g[:, j]
     motion = motion_from_transforms(bvh, local_r, trans)
     return Bvh(bvh.names, bvh.parents, bvh.offsets, bvh.channels, motion, bvh.frame_time, bvh.path)
+
+
+def _known_descendants(j, children, known, movable, ref_r, ref_t) -> tuple[np.ndarray, list[int]]:
+    """Returns `(offsets (C, 3) in joint j's frame, joints)` of j's nearest known descendants under the reference pose.
+
+    A descendant is reached through joints that are not known (they keep the reference frame's local
+    rotation, so the offset is fixed in j's frame); movable joints and zero offsets constrain nothing.
+    """
+    u, cs = [], []
+    stack = [(c, np.eye(3), np.zeros(3)) for c in reversed(children[j])]
+    while stack:
+        c, r, t = stack.pop()
+        off = t + r @ ref_t[c]
+        if known[c]:
+            if not movable[c] and np.linalg.norm(off) > 1e-9:
+                u.append(off)
+                cs.append(c)
+            continue
+        stack.extend((d, r @ ref_r[c], off) for d in reversed(children[c]))
+    return np.asarray(u).reshape(-1, 3), cs
 
 
 def bvh_from_positions(

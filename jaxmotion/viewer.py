@@ -2,6 +2,7 @@
 
     jaxmotion view runs/dlow_synthetic                       # writes runs/dlow_synthetic/view.html
     jaxmotion view RUN_DIR --out page.html --windows 4 --k 20 --method cvae
+    jaxmotion view RUN_DIR --keep-skeleton                   # futures on each window's observed bone lengths
 
 The page is one self-contained file (plotly's JavaScript is embedded, nothing is fetched when it is
 opened). It shows one test window at a time in plotly's 3-D scene (drag to rotate, scroll to zoom):
@@ -33,6 +34,7 @@ import dataclasses
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from jaxmotion import experiment, metrics
@@ -120,11 +122,19 @@ def window_views(
     method: str,
     key: jax.Array,
     mm: int = 4,
+    keep_skeleton: bool = False,
 ) -> tuple[list[WindowView], int]:
-    """Returns the views of test windows `windows` (indices into `prep`) and the K their futures were drawn at."""
+    """Returns the views of test windows `windows` (indices into `prep`) and the K their futures were drawn at.
+
+    `keep_skeleton`: each future is put on its window's bone lengths (its last observed frame; every
+    predicted bone keeps its direction, `metrics.motion_transfer`), as `jaxmotion predict` writes them.
+    """
     ds = prep.dataset
     kk = sampling_k(model, k, method)
     futures = model.predict(prep.x[windows], k=kk, key=key, method=method)[:, :k]  # (n, min(k, kk), t_pred, D)
+    if keep_skeleton:
+        last = jnp.asarray(prep.x[windows][:, -1][:, None, None])
+        futures = np.asarray(metrics.motion_transfer(jnp.asarray(futures), last, tuple(int(p) for p in ds.skeleton.parents)))
     sets = metrics.multimodal_gt(prep.x[:, -1], ds.mm_threshold, exclude_self=True)
     idx, mask = np.asarray(sets.idx), np.asarray(sets.mask)
     views = []
@@ -315,6 +325,25 @@ def write_page(fig: dict, path: str | Path) -> Path:
     return path
 
 
+def run_data(source: str, run_dir: str | Path) -> str:
+    """Returns the run's data source as a path that exists: as recorded, else relative to the run or a folder above it.
+
+    A run records the path it was trained with, often relative to the folder training started in;
+    raises `DataError` saying to pass `--data` when none of those exists.
+    """
+    if source == "synthetic" or str(source).startswith("amass:"):
+        return source
+    p = Path(source).expanduser()
+    if p.exists():
+        return str(p)
+    run_dir = Path(run_dir).absolute()
+    for base in (run_dir, *run_dir.parents):
+        if not p.is_absolute() and (base / p).exists():
+            return str(base / p)
+    raise DataError(source, f"the data {Path(run_dir) / 'predictor.json'} records is not found from here ({Path.cwd()}) nor "
+                            "relative to the run or a folder above it; pass --data PATH")
+
+
 def view_run(
     run_dir: str | Path,
     out: str | Path | None = None,
@@ -328,6 +357,7 @@ def view_run(
     config: str | None = None,
     data: str | None = None,
     test_files: list[str] | None = None,
+    keep_skeleton: bool = False,
 ) -> list[str]:
     """Writes the viewer page of the trained run `run_dir` (default `run_dir/view.html`) and returns what it wrote.
 
@@ -347,7 +377,7 @@ def view_run(
     model = load(run_dir)
     run_cfg, source = run_config(run_dir)
     cfg = experiment.resolve(load_config(config)) if config else run_cfg
-    ds = experiment.load_data(cfg, data or source, test_files)
+    ds = experiment.load_data(cfg, data or run_data(source, run_dir), test_files)
     want = (model.dim, model.t_his, model.t_pred, list(model.skeleton.names))
     have = (ds.dim, ds.t_his, ds.t_pred, list(ds.skeleton.names))
     if want != have:
@@ -356,11 +386,11 @@ def view_run(
     prep = experiment.prepare(ds, cfg.max_test_windows, cfg.train_sampler)
     method = method or model.main_method()
     chosen = experiment.most_multimodal(prep, windows)
-    views, kk = window_views(model, prep, chosen, k=k, method=method, key=jax.random.key(seed), mm=mm)
+    views, kk = window_views(model, prep, chosen, k=k, method=method, key=jax.random.key(seed), mm=mm, keep_skeleton=keep_skeleton)
     shown = len(views[0].futures)
     note = f" (the first of K={kk})" if kk > shown else f" (the run's largest K; --k {k} asked for more)" if shown < k else ""
-    drawn = f"{shown} futures{note}"
-    title = f"{ds.name}: {method}, {drawn}; {ds.t_his} observed -> {ds.t_pred} predicted frames at {ds.fps:g} fps"
+    drawn = f"{shown} futures{note}" + (" on the observed bone lengths" if keep_skeleton else "")
+    title = f"{ds.name}: {method}, {drawn}; {ds.t_his} observed -> {ds.t_pred} predicted frames at {round(ds.fps, 2):g} fps"
     fig = figure(views, ds.skeleton.parents, fps=ds.fps, title=title, max_frames=max_frames)
     path = write_page(fig, Path(out) if out else Path(run_dir) / "view.html")
     return [

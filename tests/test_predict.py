@@ -217,7 +217,7 @@ def test_report_writes_an_animated_gif(run, tmp_path):
     gif = Image.open(tmp_path / "samples.gif")
     # Observed (15) then future (60) frames, subsampled to at most 30 (+ the last); truth and the first futures side by side.
     assert png.name == "samples.png" and 20 <= gif.n_frames <= 31
-    assert gif.size[0] > 4 * gif.size[1]
+    assert gif.size[0] > 4 * gif.size[1] and gif.size[0] >= 1200
     first, last = np.asarray(gif.convert("RGB")), (gif.seek(gif.n_frames - 1), np.asarray(gif.convert("RGB")))[1]
     assert np.abs(first.astype(int) - last.astype(int)).sum() > 0  # it moves
 
@@ -276,3 +276,45 @@ def test_load_restores_only_the_stages_asked_for(run, tmp_path):
         jaxmotion.load(part, stages=(first, last))
     with pytest.raises(CheckpointError, match=r"\['nope'\] not trained"):
         jaxmotion.load(part, stages=(first, "nope"))
+
+
+def test_predicted_bvh_npz_and_gif_show_one_motion_on_the_input_skeleton(run, tmp_path):
+    """The futures are put on the input's bone lengths: BVH forward kinematics == futures.npz within 1 mm; raw output kept."""
+    _, ds, _, _, moved = run
+    pos = ds.test[0].positions.astype(np.float64) * 100  # centimetres
+    pos[:, 1:] += 0.3 * (pos[:, 1:] - pos[:, [0]])  # a body 1.3 x the model's: its bone lengths differ from the training data's
+    clip = write_bvh(tmp_path / "big.bvh", bvh_from_positions(ds.skeleton.names, ds.skeleton.parents, pos, ds.fps))
+    lines = predict_file(jaxmotion.load(moved), clip, tmp_path / "o", k=3)
+    assert any("put on the input's bone lengths" in s for s in lines)
+    z = np.load(tmp_path / "o" / "futures.npz")
+    src = read_bvh(clip)
+    par = np.array(src.parents)
+    want = np.linalg.norm(src.offsets[1:], axis=-1) * 0.01
+    for i in range(3):
+        p = forward_kinematics(read_bvh(tmp_path / "o" / f"future_{i:02d}.bvh")) * 0.01
+        assert np.abs(p[15:] - z["joints"][i]).max() < 1e-3
+        assert np.abs(p[:15] - z["observed_joints"]).max() < 1e-3
+        np.testing.assert_allclose(np.linalg.norm(p[:, 1:] - p[:, par[1:]], axis=-1), np.broadcast_to(want, (75, len(want))), rtol=1e-5)
+        np.testing.assert_allclose(z["futures"][i], (z["joints"][i][:, 1:] - z["joints"][i][:, :1]).reshape(60, -1), atol=1e-5)
+    # The raw output stays beside it, and it is another motion: the model's bodies have the training data's size.
+    raw = z["futures_raw"].reshape(3, 60, -1, 3)
+    assert raw.shape == (3, 60, ds.skeleton.num_joints - 1, 3) and np.abs(z["futures_raw"] - z["futures"]).max() > 0.01
+
+
+def test_exported_model_predicts_like_its_run(run, tmp_path, capsys):
+    _, ds, prep, _, moved = run
+    assert main(["export", str(moved), "--out", str(tmp_path / "m.msgpack")]) == 0
+    from_dir, from_file = jaxmotion.load(moved), jaxmotion.load(tmp_path / "m.msgpack")
+    assert from_file.methods == from_dir.methods and from_file.layout == from_dir.layout
+    key = jax.random.key(3)
+    for m in from_dir.methods:
+        np.testing.assert_array_equal(from_file.predict(prep.x[:2], 4, key, m), from_dir.predict(prep.x[:2], 4, key, m))
+    # No optimiser state: the file is about the size of the parameters.
+    n = sum(v.size for p in from_dir.params.values() for v in jax.tree.leaves(p))
+    assert (tmp_path / "m.msgpack").stat().st_size < 4 * n * 1.05 + 20_000
+    clip = synthetic_clip(ds, tmp_path / "clip.bvh")
+    assert main(["predict", "--model", str(tmp_path / "m.msgpack"), str(clip), "--k", "2", "--out", str(tmp_path / "o")]) == 0
+    bad = tmp_path / "bad.msgpack"
+    bad.write_bytes((tmp_path / "m.msgpack").read_bytes()[:5000])
+    with pytest.raises(CheckpointError, match="not an exported jaxmotion model"):
+        jaxmotion.load(bad)

@@ -158,3 +158,20 @@ def test_headless_chromium_draws_the_ground_truth_skeleton(page, tmp_path):
     # The legend's magenta sample is a few pixels high; the 3-D scene's skeleton is a body's height.
     assert truth.sum() > 300 and np.ptp(ys) > 100, f"{truth.sum()} magenta pixels; chromium: {run.stderr[-1000:]}"
     print(f"render: {time.perf_counter() - t0:.1f}s, {truth.sum()} ground-truth pixels spanning {np.ptp(ys)} px")
+
+
+def test_keep_skeleton_puts_the_futures_on_the_observed_bone_lengths(page):
+    from jaxmotion.predictor import load
+    from jaxmotion.viewer import window_views
+
+    _, work, prep = page
+    model, windows = load(work), np.array([0, 5])
+    raw, _ = window_views(model, prep, windows, k=4, method="dlow", key=jax.random.key(0))
+    kept, _ = window_views(model, prep, windows, k=4, method="dlow", key=jax.random.key(0), keep_skeleton=True)
+    par = np.array(prep.dataset.skeleton.parents)
+    bones = lambda p: p[..., 1:, :] - p[..., par[1:], :]  # noqa: E731
+    for r, v in zip(raw, kept):
+        want = np.linalg.norm(bones(v.observed[-1]), axis=-1)
+        np.testing.assert_allclose(np.linalg.norm(bones(v.futures), axis=-1), np.broadcast_to(want, v.futures.shape[:2] + want.shape), atol=1e-5)
+        cos = np.sum(bones(v.futures) * bones(r.futures), -1) / np.linalg.norm(bones(v.futures), axis=-1) / np.linalg.norm(bones(r.futures), axis=-1)
+        assert cos.min() > 1 - 1e-5

@@ -2,8 +2,8 @@
 #
 # A plain folder of BVH clips end to end (README "Data"): the two CMU trials of subject 01. The folder
 # has one subject, so the default split holds out the last 20% of files (at least one): 01_01.bvh
-# trains, 01_03.bvh is the test file (`--test-files 01_01` swaps them). Every 4th frame is kept
-# (120 -> 30 fps, data_options "downsample"), so the protocol is 0.5 s -> 2 s = 15 -> 60 frames,
+# trains, 01_03.bvh is the test file (`--test-files 01_01` swaps them). Each file is resampled from
+# its own rate to 30 fps (120 -> 30 here, data_options "fps"), so the protocol is 0.5 s -> 2 s = 15 -> 60 frames,
 # 31 joints relative to Hips (D = 90): 614 training windows, 71 test windows (stride 15).
 # A small budget: this shows the pipeline on a user's own clips, it is not a benchmark (one training
 # trial of 23 s is far too little data for a stochastic model).
@@ -24,7 +24,7 @@ def get_config() -> Config:
     return Config(
         name="dlow_cmu_bvh",
         dataset="../shared/data/cmu-bvh",
-        data_options={"downsample": 4},
+        data_options={"fps": 30.0},
         method_config=DLowConfig(
             cvae=CVAEConfig(num_steps=300, batch_size=32, nz=32, nh_rnn=64, nh_mlp=(128,)),
             q=QConfig(num_steps=100, batch_size=16, nh_rnn=64, nh_mlp=(128,)),

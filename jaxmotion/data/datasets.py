@@ -5,7 +5,7 @@
 | `load_h36m` | `data_3d_h36m.npz` (VideoPose3D) | 50 | 25 -> 100 | 17 | S1 S5 S6 S7 S8 / S9 S11 |
 | `load_humaneva` | `data_3d_humaneva15.npz` (VideoPose3D) | 60 | 15 -> 60 | 15 | Train/S1-3 / Validate/S1-3 |
 | `load_bandai` | Bandai-Namco-2 BVH (tarball or folder) | 30 | 15 -> 60 | 21 (no `joint_Root`) | 4 styles / style normal |
-| `load_bvh_folder` | any folder of BVH files | file's | 0.5 s -> 2 s | all but a ground node | user's `split` (default all test) |
+| `load_bvh_folder` | any folder of BVH files | file's, or `fps` | 0.5 s -> 2 s | all but a ground node | user's `split` (default all test) |
 
 Positions are global, in metres, `(T, J, 3)`; `windows.to_frames` makes them root-relative and
 drops the root. `load_dataset(spec)` picks the loader from a path. `info` records `up_axis` (for
@@ -410,8 +410,9 @@ def _check_bandai_json(f: Path, content: str, style: str, contents: list[str], s
 def load_bvh_folder(
     path: str | os.PathLike,
     *,
-    scale: float | None = None,
+    scale: float | dict[str, float] | None = None,
     split: Callable[[Path], str | None] | None = None,
+    fps: float | None = None,
     downsample: int = 1,
     t_his: int | None = None,
     t_pred: int | None = None,
@@ -425,15 +426,21 @@ def load_bvh_folder(
     joints above it must be a chain of single children, and are dropped), else a ground node is dropped
     when the skeleton has one (`formats.bvh.is_ground_skeleton`: a zero-offset root with exactly one
     child that carries the body, e.g. Bandai's `joint_Root`), whether or not it moves in a clip.
-    `scale` converts file units to metres; None means `formats.bvh.guess_scale` (CMU's cgspeed skeleton
-    is recognised, 0.056444 m/unit).
-    `split(file)` returns "train", "test" or None (skip the file); by default every file is test. Every
-    `downsample`-th frame is kept. `t_his` / `t_pred` default to 0.5 s / 2 s at the resulting
-    frame rate, as for Human3.6M and Bandai. A sequence's subject is the file stem before its first
-    `_` (CMU's `SS_TT` naming) and its action the whole stem. All files must share one skeleton
-    (joint names and parents) and frame rate; positions with NaN/inf are a `DataError` naming the
-    file and frame.
+    Each file is converted to metres by its own unit (`data.units.file_scales`): `scale` (one number,
+    or `{glob pattern: number}` per file), else guessed (`formats.bvh.guess_scale`; CMU's cgspeed
+    skeleton is recognised, 0.056444 m/unit), and checked against a person's size; a folder that fails
+    the check is one `DataError` listing every file.
+    `split(file)` returns "train", "test" or None (skip the file); by default every file is test.
+    `fps` resamples each file from its own frame rate to `fps` (linear interpolation of joint
+    positions); without it every file must have the same rate, of which every `downsample`-th frame
+    is kept. `t_his` / `t_pred` default to 0.5 s / 2 s at the resulting frame rate, as for Human3.6M
+    and Bandai. A sequence's subject is the file stem before its first `_` (CMU's `SS_TT` naming) and
+    its action the whole stem. All files must share one skeleton (joint names and parents); positions
+    with NaN/inf are a `DataError` naming the file and frame.
     """
+    from jaxmotion.data.units import file_scales
+    from jaxmotion.data.windows import resample
+
     root_dir = Path(path).expanduser()
     if not root_dir.is_dir():
         raise FileNotFoundError(f"{root_dir}: no such folder")
@@ -442,8 +449,10 @@ def load_bvh_folder(
         raise DataError(root_dir, "no .bvh files")
     if downsample < 1:
         raise ValueError(f"load_bvh_folder: downsample must be >= 1, got {downsample}")
-    train, test = [], []
-    skeleton, fps, first, drop = None, None, None, 0
+    if fps is not None and (downsample != 1 or not fps > 0):
+        raise ValueError(f"load_bvh_folder: fps must be > 0 and replaces downsample, got fps={fps}, downsample={downsample}")
+    chosen, bvhs = {}, {}
+    skeleton, rate, first, drop = None, None, None, 0
     for f in files:
         which = "test" if split is None else split(f)
         if which not in ("train", "test", None):
@@ -453,30 +462,39 @@ def load_bvh_folder(
         bvh = read_bvh(f)
         if skeleton is None:
             drop = _joints_above(bvh, root) if root is not None else int(is_ground_skeleton(bvh))
-            skeleton, fps, first = Skeleton(bvh.names, bvh.parents), bvh.fps / downsample, f
+            skeleton, rate, first = Skeleton(bvh.names, bvh.parents), bvh.fps / downsample, f
         elif (bvh.names, bvh.parents) != (skeleton.names, skeleton.parents):
             raise DataError(f, f"skeleton differs from {first}'s ({bvh.num_joints} vs {skeleton.num_joints} joints)")
-        elif abs(bvh.fps / downsample - fps) > 0.01 * fps:
-            raise DataError(f, f"{bvh.fps / downsample:.3f} fps but {first} has {fps:.3f}")
-        file_scale = guess_scale(bvh) if scale is None else scale
-        names, parents, positions = _bvh_positions(bvh, file_scale, drop)
-        stem = f.stem
-        seq = Sequence(positions[::downsample], fps, stem.split("_")[0], stem, name=str(f.relative_to(root_dir)))
-        (train if which == "train" else test).append(seq)
+        elif fps is None and abs(bvh.fps / downsample - rate) > 0.01 * rate:
+            raise DataError(f, f"{bvh.fps / downsample:.3f} fps but {first} has {rate:.3f}; resample every file to one rate "
+                               "with data_options {'fps': 30}")
+        chosen[f], bvhs[f] = which, bvh
     if skeleton is None:
         raise ValueError(f"{root_dir}: split() skipped every file")
+    scales = file_scales(bvhs, scale, root_dir)
+    out_fps = fps if fps is not None else rate
+    train, test = [], []
+    for f, bvh in bvhs.items():
+        names, parents, positions = _bvh_positions(bvh, scales[f], drop)
+        positions = resample(positions, bvh.fps, fps).astype(np.float32) if fps is not None else positions[::downsample]
+        stem = f.stem
+        seq = Sequence(positions, out_fps, stem.split("_")[0], stem, name=str(f.relative_to(root_dir)))
+        (train if chosen[f] == "train" else test).append(seq)
     skeleton = Skeleton(names, parents)
-    fps = round(fps, 3)
+    out_fps = round(out_fps, 3)
+    rates = sorted({round(b.fps, 3) for b in bvhs.values()})
+    units = sorted({scales[f] for f in bvhs})
     return MotionDataset(
         name=name or root_dir.name,
         skeleton=skeleton,
-        fps=fps,
-        t_his=t_his if t_his is not None else max(1, round(0.5 * fps)),
-        t_pred=t_pred if t_pred is not None else max(1, round(2.0 * fps)),
+        fps=out_fps,
+        t_his=t_his if t_his is not None else max(1, round(0.5 * out_fps)),
+        t_pred=t_pred if t_pred is not None else max(1, round(2.0 * out_fps)),
         mm_threshold=mm_threshold,
         train=train,
         test=test,
-        info={"source": str(root_dir), "up_axis": 1, "left_right_pairs": left_right_pairs(skeleton.names)},
+        info={"source": str(root_dir), "up_axis": 1, "left_right_pairs": left_right_pairs(skeleton.names),
+              "file_fps": rates, "file_scales": units},
     )
 
 

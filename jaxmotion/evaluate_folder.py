@@ -1,0 +1,66 @@
+"""A trained or shipped model measured on a folder of your own BVH clips, every clip a test clip, under the protocol.
+
+    jaxmotion eval --model bandai --data my_clips/ --workdir runs/eval_my_clips     # writes metrics.json
+
+The folder is read as `data.datasets.load_bvh_folder` reads it (each file in metres by its own unit,
+checked against a person's size; resampled from its own frame rate to the model's), its joints are
+matched to the model's (`joint_maps.match_skeleton`: a joint map, the names, or a built-in
+convention; the hierarchy checked), and the protocol's test windows (stride `t_his`, PROTOCOL sec. 3)
+of the model's `t_his -> t_pred` are scored with the model's predictors (`experiment.evaluate`:
+APD, ADE, FDE, MMADE, MMFDE, ADE-m, FDE-m; multimodal ground truth over the folder's windows at the
+model's threshold).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+
+from jaxmotion import experiment
+from jaxmotion.data.datasets import load_bvh_folder
+from jaxmotion.data.types import MotionDataset
+from jaxmotion.errors import DataError
+from jaxmotion.joint_maps import match_skeleton
+from jaxmotion.predictor import MotionPredictor
+
+
+def folder_as_test_set(
+    model: MotionPredictor, folder: str | Path, *, scale: float | dict[str, float] | None = None,
+    joint_map: dict[str, str] | None = None,
+) -> tuple[MotionDataset, str]:
+    """Returns `(the folder as a dataset of test sequences in the model's layout, how its joints were matched)`."""
+    lay = model.layout
+    if lay["frames"] != "root_relative":
+        raise DataError(folder, f"the model predicts {lay['frames']} marker frames; evaluating on a BVH folder needs a joint model")
+    ds = load_bvh_folder(folder, scale=scale, fps=lay["fps"], t_his=lay["t_his"], t_pred=lay["t_pred"],
+                         mm_threshold=lay["mm_threshold"])
+    mapping, how = match_skeleton(lay["joints"], lay["parents"], ds.skeleton.names, ds.skeleton.parents, joint_map,
+                                  where=folder)
+    idx = [ds.skeleton.names.index(mapping[n]) for n in lay["joints"]]
+    test = [dataclasses.replace(s, positions=np.ascontiguousarray(s.positions[:, idx])) for s in ds.test]
+    info = {**ds.info, "up_axis": lay.get("up_axis", ds.info.get("up_axis")), "joint_map": mapping}
+    return dataclasses.replace(ds, skeleton=model.skeleton, train=[], test=test, info=info), how
+
+
+def evaluate_folder(
+    model: MotionPredictor, folder: str | Path, workdir: str | Path, *, k: int | None = None,
+    scale: float | dict[str, float] | None = None, joint_map: dict[str, str] | None = None, seed: int | None = None,
+) -> list[str]:
+    """Writes `workdir/metrics.json` (one record per predictor, PROTOCOL sec. 5) and returns the lines to print."""
+    ds, how = folder_as_test_set(model, folder, scale=scale, joint_map=joint_map)
+    k = k or model.default_k
+    cfg = dataclasses.replace(model.config, eval_k=(k,), action_metrics=False, max_test_windows=None,
+                              seed=model.config.seed if seed is None else seed, mm_ground_truth="test", mm_deviation=None)
+    prep = experiment.prepare(ds, None, test_only=True)
+    workdir = Path(workdir)
+    records = experiment.evaluate(cfg, prep, model.params, workdir, f"{ds.name} (every clip a test clip)", manifest=False)
+    clips = ", ".join(sorted(s.name for s in ds.test)[:6])
+    return [
+        f"data: {folder}: {len(ds.test)} clips, all test ({clips}{', ...' if len(ds.test) > 6 else ''}); {how}; "
+        f"{ds.t_his}->{ds.t_pred} frames at {round(ds.fps, 2):g} fps (files at {', '.join(f'{round(r, 2):g}' for r in ds.info['file_fps'])} fps), "
+        f"{len(prep.windows)} test windows",
+        f"model: {model.run_dir} ({model.manifest['dataset']['name']}, {model.config.method}), K={k}",
+        f"wrote {workdir / 'metrics.json'} ({len(records)} records)",
+    ]
