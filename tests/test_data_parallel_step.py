@@ -1,7 +1,8 @@
 """The data-parallel train step: one gradient all-reduce per step, outside every loop; every method's
 stages step on 4 devices as on one; micro-batches (gradient accumulation) step as the whole batch.
 
-The tests run in a worker process of their own (`python tests/test_data_parallel_step.py OUT`) with 4
+The tests run in worker processes of their own (`python tests/test_data_parallel_step.py
+collectives|steps OUT`) with 4
 forced CPU host devices (`--xla_force_host_platform_device_count=4`); the pytest process has JAX with
 one. The one-device reference is the same step on a mesh of the first device only, so both run in
 the worker under the same XLA flags.
@@ -21,7 +22,6 @@ import pytest
 
 TIMEOUT = 900
 DEVICES = 4
-TOL = dict(rtol=2e-4, atol=2e-6)
 
 
 def _configs() -> dict:
@@ -100,26 +100,49 @@ def cvae_step_hlo(t_pred: int, mesh, t_his: int = 15, dim: int = 48, batch: int 
     return fn.lower(create_state(params, tx), windows, jax.random.key(0)).compile().as_text()
 
 
-def _worker(out: Path) -> None:
+def _worker_collectives(out: Path) -> None:
+    """Writes the collective counts of DLow's CVAE step (GRU encoders and decoder) on 2 devices, for two future lengths."""
     import jax
+    from jax.sharding import Mesh
+
+    two = Mesh(np.array(jax.devices()[:2]), ("data",))
+    counts = {}
+    for t_pred in (30, 60):
+        hlo = cvae_step_hlo(t_pred, two)
+        counts[str(t_pred)] = _collectives(hlo)
+        (out / f"hlo_{t_pred}.txt").write_text(hlo)
+    (out / "collectives.json").write_text(json.dumps(counts))
+
+
+def _worker_steps(out: Path) -> None:
+    import jax
+    import optax
     from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
     from jaxmotion import distributed, experiment
     from jaxmotion.train import runner
-    from jaxmotion.train.loop import make_bn_train_step, make_train_step
+    from jaxmotion.train.loop import bn_optimizer, create_state, make_bn_train_step, make_train_step
 
     assert jax.device_count() == DEVICES, jax.devices()
     meshes = {1: Mesh(np.array(jax.devices()[:1]), ("data",)), DEVICES: Mesh(np.array(jax.devices()), ("data",))}
-    result: dict = {"steps": {}, "micro": {}, "collectives": {}}
+    result: dict = {"steps": {}, "micro": {}}
 
     def step(stage, state, batch, key, devices, micro_batches=1):
+        """Returns `(params before - after, metrics)` of one step by SGD with learning rate 1: minus the gradient.
+
+        Not the stage's Adam, whose first step is about lr * sign(g): it would blow a gradient that is zero
+        but for rounding (a bias BatchNorm follows) up to +-lr whichever way the rounding went.
+        """
+        tx = bn_optimizer(optax.sgd(1.0)) if stage.batch_norm else optax.sgd(1.0)
         make = make_bn_train_step if stage.batch_norm else make_train_step
         mesh = meshes[devices]
-        fn = jax.jit(make(stage.loss, stage.optimizer, mesh=mesh, micro_batches=micro_batches))
-        state = distributed.replicate(state, NamedSharding(mesh, PartitionSpec()))
+        fn = jax.jit(make(stage.loss, tx, mesh=mesh, micro_batches=micro_batches))
+        state = distributed.replicate(create_state(state.params, tx, state.frozen), NamedSharding(mesh, PartitionSpec()))
+        before = _gathered(state.params)
         batch = distributed.global_batch(batch, NamedSharding(mesh, PartitionSpec("data")))
         new, metrics = fn(state, batch, key)
-        return _gathered(new.params), {k: float(v) for k, v in metrics.items()}
+        after = _gathered(new.params)
+        return {k: before[k] - after[k] for k in before}, {k: float(v) for k, v in metrics.items()}
 
     for name, cfg in _configs().items():
         cfg = experiment.resolve(cfg)
@@ -138,40 +161,64 @@ def _worker(out: Path) -> None:
             np.savez(out / f"{name}-{stage.name}-{DEVICES}.npz", **four)
             result["steps"][f"{name}/{stage.name}"] = {"bn": stage.batch_norm, "one": m_one, "four": m_four}
             if not stage.batch_norm:  # BatchNorm normalises each micro-batch by its own moments
-                micro, m_micro = step(stage, state, batch, key, 1, micro_batches=2)
-                micro4, m_micro4 = step(stage, state, batch, key, DEVICES, micro_batches=2)
-                np.savez(out / f"{name}-{stage.name}-micro1.npz", **micro)
-                np.savez(out / f"{name}-{stage.name}-micro{DEVICES}.npz", **micro4)
-                result["micro"][f"{name}/{stage.name}"] = {"one": m_one, "micro": m_micro, "micro4": m_micro4}
+                micro, m_micro = step(stage, state, batch, key, DEVICES, micro_batches=2)
+                np.savez(out / f"{name}-{stage.name}-micro.npz", **micro)
+                result["micro"][f"{name}/{stage.name}"] = {"one": m_one, "micro": m_micro}
 
-    # The compiled program of DLow's CVAE step (GRU encoders and decoder) on 2 devices, for two future lengths.
-    two = Mesh(np.array(jax.devices()[:2]), ("data",))
-    for t_pred in (30, 60):
-        hlo = cvae_step_hlo(t_pred, two)
-        result["collectives"][str(t_pred)] = _collectives(hlo)
-        (out / f"hlo_{t_pred}.txt").write_text(hlo)
     (out / "result.json").write_text(json.dumps(result, indent=1))
+
+
+def _run(mode: str, out: Path, cache: Path | None = None) -> None:
+    flags = f"--xla_force_host_platform_device_count={DEVICES}"
+    env = dict(os.environ, JAX_PLATFORMS="cpu", XLA_FLAGS=flags)
+    if cache is not None:  # most of the steps' worker is compiling; launches share a persistent cache
+        env.update(JAX_COMPILATION_CACHE_DIR=str(cache), JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS="0")
+    p = subprocess.run([sys.executable, __file__, mode, str(out)], env=env, capture_output=True, text=True, timeout=TIMEOUT)
+    assert p.returncode == 0, p.stderr[-4000:]
 
 
 @pytest.fixture(scope="module")
 def worker(tmp_path_factory) -> tuple[Path, dict]:
+    """The steps of every method's stages on 1 and 4 devices, and with micro-batches (their parameters in `.npz` files)."""
     out = tmp_path_factory.mktemp("dp_step")
-    cache = tmp_path_factory.mktemp("jax_cache")
-    flags = f"--xla_force_host_platform_device_count={DEVICES}"
-    env = dict(os.environ, JAX_PLATFORMS="cpu", XLA_FLAGS=flags, JAX_COMPILATION_CACHE_DIR=str(cache))
-    p = subprocess.run([sys.executable, __file__, str(out)], env=env, capture_output=True, text=True, timeout=TIMEOUT)
-    assert p.returncode == 0, p.stderr[-4000:]
+    _run("steps", out, tmp_path_factory.mktemp("jax_cache"))
     return out, json.loads((out / "result.json").read_text())
 
 
-def test_one_gradient_all_reduce_per_step_outside_every_loop(worker):
+def test_one_gradient_all_reduce_per_step_outside_every_loop(tmp_path):
     """DLow's CVAE (GRU encoder and decoder scans) on 2 devices: the collectives do not grow with t_pred, none is in a loop."""
-    counts = worker[1]["collectives"]
+    _run("collectives", tmp_path)
+    counts = json.loads((tmp_path / "collectives.json").read_text())
     assert counts["30"] == counts["60"], counts
     assert counts["30"]["in_loops"] == 0, counts
     assert 1 <= counts["30"]["total"] <= 4, counts  # the pmean of the gradients and metrics (XLA may split it by type)
 
 
+def _assert_steps_equal(got: dict, want: dict, what: str) -> None:
+    """Asserts two steps' updates (minus the gradients, the BatchNorm statistics' moves) agree to float32 sums' order.
+
+    Measured over the whole tree, `|got - want| / |want|`: a bias that BatchNorm follows has a zero
+    gradient in exact arithmetic, so its float gradient is rounding noise in any summation order, and
+    BatchNorm over a few rows amplifies the rounding of the moments (DivSamp's sampler: 8e-5 here).
+    Rows drawn or reduced wrongly are errors of percents.
+    """
+    assert sorted(got) == sorted(want) and want
+    norm = lambda t: np.sqrt(sum(float(np.sum(np.square(v, dtype=np.float64))) for v in t))  # noqa: E731
+    size = norm(want.values())
+    assert size > 0, what
+    err = norm(got[k] - want[k] for k in want) / size
+    assert err < 2e-4, (what, err)
+
+
+def _assert_metrics_equal(got: dict, want: dict, what: str) -> None:
+    """Asserts equal metrics: the loss to 1e-4, the others to 1e-3 (MOJO's untrained diversity term, exp(-d2 / s) of large
+    distances, turns their rounding into 2e-4)."""
+    assert sorted(got) == sorted(want), what
+    for k, v in want.items():
+        assert got[k] == pytest.approx(v, rel=1e-4 if k == "loss" else 1e-3, abs=1e-6), (what, k, got[k], v)
+
+
+@pytest.mark.slow  # compiles 30 train steps of 11 stages (3-10 minutes of CPU)
 def test_every_method_and_stage_steps_on_four_devices_as_on_one(worker):
     out, result = worker
     steps = result["steps"]
@@ -182,30 +229,21 @@ def test_every_method_and_stage_steps_on_four_devices_as_on_one(worker):
     ])
     for name, m in steps.items():
         one, four = (dict(np.load(out / f"{name.replace('/', '-')}-{d}.npz")) for d in (1, DEVICES))
-        assert sorted(one) == sorted(four) and one
-        moved = [k for k in one if "batch_stats" not in k and not np.allclose(one[k], 0.0)]
-        assert moved, name
-        for k in one:
-            np.testing.assert_allclose(four[k], one[k], err_msg=f"{name} {k}", **TOL)
-        for k, v in m["one"].items():
-            assert m["four"][k] == pytest.approx(v, rel=1e-4, abs=1e-6), (name, k)
+        _assert_steps_equal(four, one, name)
+        _assert_metrics_equal(m["four"], m["one"], name)
 
 
+@pytest.mark.slow  # the same worker
 def test_micro_batches_step_as_the_whole_batch(worker):
     out, result = worker
     micro = result["micro"]
     assert sorted(micro) == sorted(["dlow/cvae", "dlow/dlow_k4", "mojo/cvae", "mojo/q_k4", "gsps/prior", "motionmap/autoencoder",
                                     "motionmap/heatmap", "motionmap/finetune"])
-    for name, m in micro.items():
-        one = dict(np.load(out / f"{name.replace('/', '-')}-1.npz"))
-        for got in ("micro1", f"micro{DEVICES}"):
-            acc = dict(np.load(out / f"{name.replace('/', '-')}-{got}.npz"))
-            for k in one:
-                np.testing.assert_allclose(acc[k], one[k], err_msg=f"{name} {got} {k}", **TOL)
-        for k, v in m["one"].items():
-            assert m["micro"][k] == pytest.approx(v, rel=1e-4, abs=1e-6), (name, k)
-            assert m["micro4"][k] == pytest.approx(v, rel=1e-4, abs=1e-6), (name, k)
+    for name, m in micro.items():  # 2 micro-batches on each of 4 devices against the whole batch on one
+        one, acc = (dict(np.load(out / f"{name.replace('/', '-')}-{got}.npz")) for got in ("1", "micro"))
+        _assert_steps_equal(acc, one, name)
+        _assert_metrics_equal(m["micro"], m["one"], name)
 
 
 if __name__ == "__main__":
-    _worker(Path(sys.argv[1]))
+    {"collectives": _worker_collectives, "steps": _worker_steps}[sys.argv[1]](Path(sys.argv[2]))

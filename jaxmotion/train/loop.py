@@ -118,11 +118,10 @@ def _grads(loss_fn, *, batch_norm: bool):
         def grads(params, frozen, batch, key):
             (loss, metrics), g = jax.value_and_grad(loss_fn, has_aux=True)(params, frozen, batch, key)
             return loss, metrics, g, None
-    else:
+    else:  # the gradient of the statistics is zero (the loss normalises by the batch's moments), bn_optimizer ignores it
         def grads(variables, frozen, batch, key):
-            of_params = lambda p: loss_fn({**variables, "params": p}, frozen, batch, key)  # noqa: E731
-            (loss, (metrics, stats)), g = jax.value_and_grad(of_params, has_aux=True)(variables["params"])
-            return loss, metrics, {**jax.tree.map(jnp.zeros_like, variables), "params": g}, stats
+            (loss, (metrics, stats)), g = jax.value_and_grad(loss_fn, has_aux=True)(variables, frozen, batch, key)
+            return loss, metrics, g, stats
     return grads
 
 
@@ -133,13 +132,14 @@ def _data_parallel_step(grads, tx, mesh: Mesh | None, micro_batches: int, *, bat
         raise ValueError(f"micro_batches must be >= 1, got {micro_batches}")
 
     def local(state: TrainState, batch, key):  # one device's rows of the batch
-        device = jax.lax.axis_index(distributed.DATA)
+        device = jax.lax.axis_index(distributed.DATA) if n > 1 else 0
         if m == 1:
             with distributed.batch_part(device, n):
                 loss, metrics, g, stats = grads(state.params, state.frozen, batch, key)
         else:
             loss, metrics, g, stats = _accumulate(grads, state, batch, key, device, n, m, batch_norm)
-        loss, metrics, g = jax.lax.pmean((loss, metrics, g), distributed.DATA)  # the step's one all-reduce
+        if n > 1:
+            loss, metrics, g = jax.lax.pmean((loss, metrics, g), distributed.DATA)  # the step's one all-reduce
         updates, opt_state = tx.update(g, state.opt_state, state.params)
         params = optax.apply_updates(state.params, updates)
         if batch_norm:
@@ -147,6 +147,8 @@ def _data_parallel_step(grads, tx, mesh: Mesh | None, micro_batches: int, *, bat
         metrics = dict(metrics, loss=loss, grad_norm=optax.tree.norm(g["params"] if batch_norm else g))
         return state.replace(step=state.step + 1, params=params, opt_state=opt_state), metrics
 
+    if n == 1:  # one device: the step itself, the program a step without a mesh compiles to
+        return local
     # Unchecked replication: the outputs are equal on every device because they come from the pmean.
     spec = PartitionSpec(distributed.DATA)
     return jax.shard_map(local, mesh=mesh, in_specs=(PartitionSpec(), spec, PartitionSpec()),
