@@ -16,9 +16,7 @@ is measured from the log lines after the warm-up steps, windows/s on the second 
 
 On a CPU, forced host devices and extra processes share the same cores, so this measures the overhead
 of sharding, collectives and process coordination, not a speedup; a speedup needs devices with their
-own compute (GPUs, TPU chips, or hosts). With several processes on a CPU each process is pinned to
-one core of its own (process i to the i-th core it may run on), as on separate hosts; one process has
-them all.
+own compute (GPUs, TPU chips, or hosts).
 """
 
 from __future__ import annotations
@@ -93,12 +91,6 @@ def run_setting(s: dict, args) -> dict:
 
 def worker(args) -> None:
     """Measures one setting in this process (one of `--num-processes` when given) and prints a JSON line (process 0)."""
-    if args.platform == "cpu" and (args.num_processes or 1) > 1 and hasattr(os, "sched_setaffinity"):
-        # One core each, as processes on separate hosts have their own: unpinned, the processes' XLA
-        # thread pools (one thread per core each) time-share the same cores and each step waits for the
-        # slower one. Set before JAX starts, so XLA sizes its pool to the one core.
-        cores = sorted(os.sched_getaffinity(0))
-        os.sched_setaffinity(0, {cores[args.process_id % len(cores)]})
     from jaxmotion import distributed
 
     distributed.initialize(args.coordinator_address, args.num_processes, args.process_id)

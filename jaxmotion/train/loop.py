@@ -31,6 +31,7 @@ import numpy as np
 import optax
 import orbax.checkpoint as ocp
 from flax import struct
+from jax.flatten_util import ravel_pytree
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from tqdm.auto import tqdm
 
@@ -138,8 +139,9 @@ def _data_parallel_step(grads, tx, mesh: Mesh | None, micro_batches: int, *, bat
                 loss, metrics, g, stats = grads(state.params, state.frozen, batch, key)
         else:
             loss, metrics, g, stats = _accumulate(grads, state, batch, key, device, n, m, batch_norm)
-        if n > 1:
-            loss, metrics, g = jax.lax.pmean((loss, metrics, g), distributed.DATA)  # the step's one all-reduce
+        if n > 1:  # the step's one all-reduce, of one array: between processes each collective costs a round trip
+            flat, unravel = ravel_pytree((loss, metrics, g))
+            loss, metrics, g = unravel(jax.lax.pmean(flat, distributed.DATA))
         updates, opt_state = tx.update(g, state.opt_state, state.params)
         params = optax.apply_updates(state.params, updates)
         if batch_norm:
