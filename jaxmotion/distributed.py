@@ -162,8 +162,8 @@ _PART: contextvars.ContextVar = contextvars.ContextVar("jaxmotion_batch_part", d
 
 
 @contextlib.contextmanager
-def batch_part(index: jax.Array, count: int) -> Iterator[None]:
-    """Traces the code inside as the loss of part `index` (a traced integer) of `count` equal parts of the global batch.
+def batch_part(index: jax.Array | int, count: int) -> Iterator[None]:
+    """Traces the code inside as the loss of part `index` (an integer, traced or not) of `count` equal parts of the global batch.
 
     The train step sets it around each device's (and each micro-batch's) loss; `batch_rows` reads it.
     """
