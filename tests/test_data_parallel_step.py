@@ -245,5 +245,31 @@ def test_micro_batches_step_as_the_whole_batch(worker):
         _assert_metrics_equal(m["micro"], m["one"], name)
 
 
+def test_micro_batches_of_a_gru_step_on_one_device_and_a_batch_that_does_not_split():
+    """In this process (one device): DLow's CVAE in 4 micro-batches steps as the whole batch; a batch of 6 is a clear error."""
+    import jax
+    import jax.numpy as jnp
+    import optax
+
+    from jaxmotion import distributed
+    from jaxmotion.errors import ConfigError
+    from jaxmotion.models import dlow
+    from jaxmotion.train.loop import create_state, make_train_step
+
+    t_his, t_pred, dim = 10, 20, 48
+    cvae = dlow.cvae_model(dlow.CVAEConfig(nz=8, nh_rnn=16, nh_mlp=(16,)), dim, t_pred)
+    params = cvae.init(jax.random.key(0), jnp.zeros((1, t_his, dim)), jnp.zeros((1, t_pred, dim)), jax.random.key(0))
+    loss = lambda p, _f, b, k: dlow.cvae_loss(cvae, p, b, k, t_his=t_his, beta=0.1, lambda_v=1000.0)  # noqa: E731
+    tx = optax.sgd(1.0)
+    batch = jax.random.normal(jax.random.key(1), (8, t_his + t_pred, dim))
+    steps = {m: jax.jit(make_train_step(loss, tx, micro_batches=m))(create_state(params, tx), batch, jax.random.key(2)) for m in (1, 4)}
+    before = _gathered(params)
+    (whole, m1), (acc, m4) = ((_gathered(s.params), m) for s, m in (steps[1], steps[4]))
+    _assert_steps_equal({k: before[k] - acc[k] for k in before}, {k: before[k] - whole[k] for k in before}, "micro-batches")
+    _assert_metrics_equal({k: float(v) for k, v in m4.items()}, {k: float(v) for k, v in m1.items()}, "micro-batches")
+    with pytest.raises(ConfigError, match=r"batch size 6 does not split over 1 devices x 4 micro-batches.*multiple of 4"):
+        distributed.check_batch(np.zeros((6, 3)), distributed.data_mesh(), "stage 'cvae'", micro_batches=4)
+
+
 if __name__ == "__main__":
     {"collectives": _worker_collectives, "steps": _worker_steps}[sys.argv[1]](Path(sys.argv[2]))
