@@ -214,7 +214,7 @@ def fit(
     Each batch is split over the devices of `mesh` (default `distributed.data_mesh()`: every device of
     every process), so its size must be a multiple of their number (`ConfigError` otherwise, before
     the first step), times `micro_batches` when `train_step` accumulates over micro-batches
-    (`make_train_step`). With several processes every one of them calls `fit` with the same arguments and
+    (`make_train_step`, made for the same mesh). With several processes every one of them calls `fit` with the same arguments and
     draws the same global batches; `evaluate` runs in all of them, only process 0 logs.
     """
     workdir = Path(workdir).absolute()
