@@ -84,6 +84,13 @@ class Config:
     # bfloat16 instructions (or a GPU / TPU); its effect on speed and on the metrics is measured in
     # benchmarks/README.md. GSPS's flow prior, MotionMap and the metrics keep float32 always.
     precision: str = "float32"
+    # Gradient accumulation: each device takes its share of every batch in `micro_batches` equal
+    # micro-batches, one after another, and the optimiser steps once on their mean gradient (one
+    # all-reduce per step): a global batch too large for the devices' memory. Equal to the whole batch
+    # at once for losses that are means over windows (DLow, MOJO, MotionMap); with BatchNorm (DivSamp,
+    # GSPS) each micro-batch is normalised by its own moments. Batch sizes must be multiples of the
+    # device count times `micro_batches`.
+    micro_batches: int = 1
 
 
 def load_config(path: str | Path | None) -> Config:
@@ -180,7 +187,7 @@ _CHOICES = {"split": ("test", "val"), "train_sampler": ("windows", "sequences"),
             "precision": ("float32", "bf16")}  # nn/precision.PRECISIONS (that module imports jax; tested equal)
 # `Config`'s intervals: (field, rule, what the rule asks), checked once the field's type is right.
 _CONFIG_RULES = (
-    *((n, lambda v: v >= 1, ">= 1") for n in ("ckpt_every", "log_every", "eval_batch")),
+    *((n, lambda v: v >= 1, ">= 1") for n in ("ckpt_every", "log_every", "eval_batch", "micro_batches")),
     ("eval_k", lambda v: bool(v) and all(k >= 1 for k in v), ">= 1 each"),
     ("seed", lambda v: v >= 0, ">= 0 (it seeds numpy's generators)"),
     ("max_test_windows", lambda v: v is None or v >= 1, "None or >= 1"),

@@ -6,7 +6,7 @@
 #       --coordinator-address 127.0.0.1:12355 --num-processes 2 --process-id 0
 # A small DLow on the synthetic data, to try the multi-process path, not a result: CVAE 100 steps x 64
 # (32 windows per process), Q network 40 steps x 16, K = 5 on 64 test windows.
-# Runtime and result: see README.md ("Training on many devices").
+# The speed of two processes against one: README.md ("Training on many devices", measured with benchmarks/scaling.py).
 from jaxmotion.config import Config
 from jaxmotion.models.dlow import CVAEConfig, DLowConfig, QConfig
 

@@ -26,8 +26,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
+from jax.sharding import Mesh
 from jaxtyping import Array, ArrayLike, Float, Int
 
+from jaxmotion import distributed
 from jaxmotion.nn.gru import GRU
 from jaxmotion.train.loop import create_state, make_train_step
 
@@ -110,7 +112,9 @@ def train(
     # One frame gives the parameters of any length; jitted, init is one compile instead of one per operation.
     params = jax.jit(model.init)(jax.random.key(c.seed), jnp.asarray(y0[:1, :1]))
     tx = optax.adam(optax.cosine_decay_schedule(c.lr, c.num_steps, alpha=0.05))
-    step_fn = jax.jit(make_train_step(loss_fn(model), tx), donate_argnums=0)
+    # Every process trains the same classifier on its first device (the batches are its local arrays).
+    one = Mesh(np.array(jax.local_devices()[:1]), (distributed.DATA,))
+    step_fn = jax.jit(make_train_step(loss_fn(model), tx, mesh=one), donate_argnums=0)
     state = jax.jit(lambda p: create_state(p, tx))(params)  # one compile, not one per optimiser leaf
     key, t0 = jax.random.key(c.seed), time.perf_counter()
     for step in range(c.num_steps):

@@ -27,6 +27,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
 from jaxmotion.dct import dct, idct
+from jaxmotion.distributed import batch_rows
 from jaxmotion.nn.decoder_loop import decoder_loop, decoder_scan
 from jaxmotion.nn.gru import GRU, GRUCell
 from jaxmotion.nn.linear import Dense
@@ -40,7 +41,8 @@ def reparameterise(mu: Float[ArrayLike, "..."], logvar: Float[ArrayLike, "..."],
     """Returns `mu + exp(logvar / 2) * eps`, eps ~ N(0, I) (Kingma & Welling Eq. (10)); `mu` when `key` is None."""
     if key is None:
         return mu
-    return mu + jnp.exp(0.5 * logvar) * jax.random.normal(key, mu.shape)
+    eps = batch_rows(lambda n: jax.random.normal(key, (n,) + mu.shape[1:]), mu.shape[0])
+    return mu + jnp.exp(0.5 * logvar) * eps
 
 
 def vmap_k(decode: Callable[[jax.Array], jax.Array], z: Float[ArrayLike, "b k ..."]) -> Float[Array, "b k ..."]:
@@ -222,7 +224,7 @@ def decode_k(model: GRUCVAE, params, x: Float[ArrayLike, "b t_his d"], z) -> Flo
 
 def sample_prior(model: GRUCVAE, params, x: Float[ArrayLike, "b t_his d"], key: jax.Array, k: int) -> Float[Array, "b k t_pred d"]:
     """Returns K futures with latents drawn i.i.d. from N(0, I): the plain CVAE sampler (DLow's "CVAE" row, MOJO's VAE+DCT)."""
-    z = jax.random.normal(key, (x.shape[0], k) + model.latent_shape)
+    z = batch_rows(lambda n: jax.random.normal(key, (n, k) + model.latent_shape), x.shape[0])
     return decode_k(model, params, x, z)
 
 

@@ -35,6 +35,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
 from jaxmotion.dct import dct, idct
+from jaxmotion.distributed import batch_rows
 from jaxmotion.gumbel import COEFFICIENT_KINDS, sample_coefficients
 from jaxmotion.losses import dlow_diversity, hinge_diversity, kld_normal
 # The skeleton's bones live with the metrics (motion transfer uses them too); kept importable from here.
@@ -270,11 +271,11 @@ class DivSampSampler(nn.Module):
             sample = lambda kk, _lg: sample_coefficients(kk, k, m, kind=self.coefficients, tau=self.tau)
         else:
             sample = lambda kk, lg: sample_coefficients(kk, k, m, kind=self.coefficients, tau=self.tau, logits=lg)
-        w = jax.vmap(sample)(jax.random.split(k_w, b), logits)  # (b, K, M), rows on the simplex
+        w = jax.vmap(sample)(batch_rows(lambda n: jax.random.split(k_w, n), b), logits)  # (b, K, M), rows on the simplex
         p = w @ base  # (b, K, n_b): K points of the auxiliary space (DivSamp Eq. (11))
         mean = GammaHead(self.nh, self.nz, self.dense_init, self.bn_running_var, mm, name="mean")(p, train=train)
         logvar = GammaHead(self.nh, self.nz, self.dense_init, self.bn_running_var, mm, name="logvar")(p, train=train)
-        eps = jax.random.normal(k_eps, (b, 1 if shared_eps else k, self.nz))
+        eps = batch_rows(lambda n: jax.random.normal(k_eps, (n, 1 if shared_eps else k, self.nz)), b)
         return jnp.exp(0.5 * logvar) * eps + mean, mean, logvar  # DivSamp Eq. (12)
 
 
@@ -315,7 +316,7 @@ def decode_k(cvae: DivSampCVAE, variables, cx: Float[ArrayLike, "b j c"], z: Flo
 def sample_prior(cvae: DivSampCVAE, variables, x: Float[ArrayLike, "b t_his d"], key, k: int, *, t_pred: int):
     """Returns K futures `(b, K, t_pred, D)` with latents drawn i.i.d. from N(0, I): the plain CVAE baseline."""
     cx = condition_nodes(x, t_pred, cvae.n_dct)
-    z = jax.random.normal(key, (x.shape[0], k, cvae.nz))
+    z = batch_rows(lambda n: jax.random.normal(key, (n, k, cvae.nz)), x.shape[0])
     return decode_k(cvae, variables, cx, z, t_his=x.shape[1], t_pred=t_pred)
 
 

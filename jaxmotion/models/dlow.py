@@ -17,6 +17,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
+from jaxmotion.distributed import batch_rows
 from jaxmotion.losses import dlow_diversity, kld_affine, kld_normal, min_of_k_sq_error
 from jaxmotion.models.cvae import GRUCVAE, cvae_objective, decode_k, sample_prior
 from jaxmotion.nn.gru import GRU
@@ -149,7 +150,7 @@ def q_model(c: QConfig, nz: int, nk: int, precision: str = "float32") -> DLowQ:
 
 def sample_dlow(cvae: DLowCVAE, cvae_params, q: DLowQ, q_params, x, key: jax.Array) -> Float[Array, "b nk t_pred d"]:
     """Returns DLow's `nk` futures: one noise draw per window mapped to nk latents by Q (DLow Eq. (4))."""
-    eps = jax.random.normal(key, (x.shape[0], cvae.nz))
+    eps = batch_rows(lambda n: jax.random.normal(key, (n, cvae.nz)), x.shape[0])
     z, _, _ = q.apply(q_params, x, eps)
     return decode_k(cvae, cvae_params, x, z)
 
@@ -173,7 +174,7 @@ def dlow_loss(
            + lambda_recon min_k ||y_k - Y||^2.
     """
     x, y = batch[:, :t_his], batch[:, t_his:]
-    eps = jax.random.normal(key, (x.shape[0], cvae.nz))
+    eps = batch_rows(lambda n: jax.random.normal(key, (n, cvae.nz)), x.shape[0])
     z, a, b = q.apply(q_params, x, eps)
     y_g = decode_k(cvae, jax.lax.stop_gradient(cvae_params), x, z)
     kld = jnp.mean(kld_affine(a, b))

@@ -50,6 +50,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
+from jaxmotion.distributed import batch_rows, batch_sum
 from jaxmotion.metrics import pairwise_sq_distances
 from jaxmotion.models.divsamp import bone_lengths, bone_vectors, condition_nodes, from_nodes
 from jaxmotion.nn.gcn import GCLStack, GraphConv
@@ -406,12 +407,15 @@ def angle_violations(cos: Float[Array, "... a"], bounds: Float[Array, "a 2"]) ->
 
 
 def angle_loss(cos: Float[Array, "n a"], bounds: Float[Array, "a 2"]) -> Float[Array, ""]:
-    """Returns the release's angle loss: per family, the squared violation averaged over the violating elements, summed."""
+    """Returns the release's angle loss: per family, the squared violation averaged over the violating elements, summed.
+
+    The `n` rows are the batch's frames: in the data-parallel train step the sums run over every device's.
+    """
     v = angle_violations(cos, bounds)
     fam = np.asarray([sorted(set(ANGLE_FAMILIES)).index(f) for f in ANGLE_FAMILIES])
     n_fam = len(set(ANGLE_FAMILIES))
-    sq = jax.ops.segment_sum(jnp.sum(v**2, axis=0), fam, n_fam)
-    count = jax.ops.segment_sum(jnp.sum(v > 0, axis=0).astype(jnp.float32), fam, n_fam)
+    sq = jax.ops.segment_sum(batch_sum(jnp.sum(v**2, axis=0)), fam, n_fam)
+    count = jax.ops.segment_sum(batch_sum(jnp.sum(v > 0, axis=0).astype(jnp.float32)), fam, n_fam)
     return jnp.sum(sq / jnp.maximum(count, 1.0))
 
 
@@ -528,22 +532,22 @@ def generate(
 def training_noise(key: jax.Array, b: int, n_parts: int, nk1: int, nk2: int, nz: int) -> Float[Array, "b k p z"]:
     """Returns the release's nk1 x nk2 noise grid `(b, nk1 * nk2, P, nz)`: sample (i, j) has first-part noise i, later-part noises (i, j)."""
     k1, k2 = jax.random.split(key)
-    first = jax.random.normal(k1, (b, nk1, 1, 1, nz))
-    rest = jax.random.normal(k2, (b, nk1, nk2, n_parts - 1, nz))
+    first = batch_rows(lambda n: jax.random.normal(k1, (n, nk1, 1, 1, nz)), b)
+    rest = batch_rows(lambda n: jax.random.normal(k2, (n, nk1, nk2, n_parts - 1, nz)), b)
     z = jnp.concatenate([jnp.broadcast_to(first, (b, nk1, nk2, 1, nz)), rest], axis=3)
     return z.reshape(b, nk1 * nk2, n_parts, nz)
 
 
 def sample_noise(key: jax.Array, b: int, k: int, n_parts: int, nz: int) -> Float[Array, "b k p z"]:
     """Returns i.i.d. N(0, I) noise for every part of every sample (test time, any K)."""
-    return jax.random.normal(key, (b, k, n_parts, nz))
+    return batch_rows(lambda n: jax.random.normal(key, (n, k, n_parts, nz)), b)
 
 
 def part_control_noise(key: jax.Array, b: int, k: int, n_parts: int, nz: int, fixed: tuple[int, ...]) -> Float[Array, "b k p z"]:
     """Returns noise where the parts in `fixed` share one draw across the K samples and the others vary."""
     kf, kv = jax.random.split(key)
-    shared = jnp.broadcast_to(jax.random.normal(kf, (b, 1, n_parts, nz)), (b, k, n_parts, nz))
-    free = jax.random.normal(kv, (b, k, n_parts, nz))
+    shared = jnp.broadcast_to(batch_rows(lambda n: jax.random.normal(kf, (n, 1, n_parts, nz)), b), (b, k, n_parts, nz))
+    free = batch_rows(lambda n: jax.random.normal(kv, (n, k, n_parts, nz)), b)
     mask = np.isin(np.arange(n_parts), np.asarray(fixed, int))[None, None, :, None]
     return jnp.where(mask, shared, free)
 
@@ -614,7 +618,7 @@ def generator_loss(
     err, err_mm = _best_of_errors(y_g, y, mm, best_of)  # (b, K), (b, K, M)
     recon = jnp.mean(jnp.min(err, axis=1))
     best_mm = jnp.min(err_mm, axis=1)
-    recon_mm = jnp.sum(best_mm * mm_mask) / jnp.maximum(jnp.sum(mm_mask), 1.0)
+    recon_mm = batch_sum(jnp.sum(best_mm * mm_mask)) / jnp.maximum(batch_sum(jnp.sum(mm_mask)), 1.0)
     # Pose prior on every `prior_stride`-th future frame (random phase), limb directions.
     phase = jax.random.randint(k_phase, (), 0, prior_stride)
     idx = jnp.arange(t_pred // prior_stride) * prior_stride + phase

@@ -43,6 +43,7 @@ import jax.numpy as jnp
 from flax import struct
 from jaxtyping import Array, ArrayLike, Float
 
+from jaxmotion.distributed import batch_rows
 from jaxmotion.losses import dlow_diversity, kld_normal, min_of_k_sq_error, robust_kld
 from jaxmotion.models.cvae import DecodeCarry, DecodeInputs, GRUCVAE, cvae_objective, decode_k, sample_prior
 from jaxmotion.models.dlow import QTrunk
@@ -223,9 +224,9 @@ def q_model(cfg: MojoConfig, horizon: int, nk: int, precision: str = "float32") 
 def q_latents(model: MojoCVAE, q: MojoQ, q_params, x, key: jax.Array):
     """Returns `(z (b, nk) + latent_shape, a, b)`: DLow latents on the lowest L bands, N(0, I) above."""
     k_eps, k_high = jax.random.split(key)
-    eps = jax.random.normal(k_eps, (x.shape[0], q.n_low, model.nz))
+    eps = batch_rows(lambda n: jax.random.normal(k_eps, (n, q.n_low, model.nz)), x.shape[0])
     z_low, a, b = q.apply(q_params, x, eps)
-    z_high = jax.random.normal(k_high, (x.shape[0], q.nk, model.n_bands - q.n_low, model.nz))
+    z_high = batch_rows(lambda n: jax.random.normal(k_high, (n, q.nk, model.n_bands - q.n_low, model.nz)), x.shape[0])
     z = jnp.concatenate([z_low, z_high], axis=2)
     return z.reshape(z.shape[:2] + model.latent_shape), a, b
 

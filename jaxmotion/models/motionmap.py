@@ -40,6 +40,7 @@ import numpy as np
 from jax import lax
 from jaxtyping import Array, Bool, Float, Int, Shaped
 
+from jaxmotion.distributed import batch_rows
 from jaxmotion.metrics import MMSets, frame_parents, mm_errors_transferred, motion_transfer, motionmap_mm_sets  # noqa: F401 (re-exported)
 from jaxmotion.nn.gru import GRU, GRUCell, gru_update
 from jaxmotion.nn.linear import DENSE_INITS, Conv1x1, Dense
@@ -501,7 +502,7 @@ def disc_cells(key: jax.Array, centre: Int[Array, "b 2"], *, k: int, radius: flo
     r = int(np.floor(radius))
     off = np.stack(np.meshgrid(np.arange(-r, r + 1), np.arange(-r, r + 1), indexing="ij"), -1).reshape(-1, 2)
     off = jnp.asarray(off[(off**2).sum(-1) <= radius**2], jnp.int32)
-    pick = jax.random.randint(key, (centre.shape[0], k), 0, off.shape[0])
+    pick = batch_rows(lambda n: jax.random.randint(key, (n, k), 0, off.shape[0]), centre.shape[0])
     return jnp.clip(centre[:, None] + off[pick], 0, size - 1)
 
 

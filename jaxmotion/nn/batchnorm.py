@@ -8,6 +8,10 @@ unbiased one (times n / (n - 1), n the number of values per feature in the batch
 (`scale`, `bias`; `batch_stats/mean`, `batch_stats/var`) and the momentum convention
 (`running = momentum * running + (1 - momentum) * batch`, i.e. PyTorch's momentum 0.1 is 0.9
 here) are flax's, so checkpoints of either kind load into the other.
+
+Inside the data-parallel train step the batch moments are the whole global batch's: each device's
+moments are averaged over the devices (`distributed.batch_mean`, equal shares), as one device
+computes them.
 """
 
 from __future__ import annotations
@@ -17,6 +21,8 @@ import math
 import flax.linen as nn
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
+
+from jaxmotion import distributed
 
 RUNNING_VARS = ("unbiased", "biased")
 
@@ -51,10 +57,10 @@ class BatchNorm(nn.Module):
         if self.use_running_average:
             mean, var = ra_mean.value.reshape(view), ra_var.value.reshape(view)
         else:
-            mean = jnp.mean(x, axis=axes, keepdims=True)
-            var = jnp.mean(jnp.square(x - mean), axis=axes, keepdims=True)
+            mean = distributed.batch_mean(jnp.mean(x, axis=axes, keepdims=True))
+            var = distributed.batch_mean(jnp.mean(jnp.square(x - mean), axis=axes, keepdims=True))
             if not self.is_initializing():
-                n = math.prod(x.shape[a] for a in axes)
+                n = math.prod(x.shape[a] for a in axes) * distributed.batch_parts()
                 keep = var * (n / (n - 1)) if self.running_var == "unbiased" and n > 1 else var
                 m = self.momentum
                 ra_mean.value = m * ra_mean.value + (1.0 - m) * mean.reshape(-1)

@@ -34,6 +34,7 @@ import numpy as np
 import optax
 import orbax.checkpoint as ocp
 from flax import struct
+from jax.flatten_util import ravel_pytree
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from tqdm.auto import tqdm
 
@@ -78,17 +79,19 @@ def lr_schedule(lr: float, num_steps: int, fix_fraction: float) -> optax.Schedul
 LossFn = Callable[[Any, Any, Any, jax.Array], tuple[jax.Array, dict]]
 
 
-def make_train_step(loss_fn: LossFn, tx: optax.GradientTransformation):
-    """Returns `train_step(state, batch, key) -> (state, metrics)` for `loss_fn(params, frozen, batch, key)`."""
+def make_train_step(loss_fn: LossFn, tx: optax.GradientTransformation, *, mesh: Mesh | None = None, micro_batches: int = 1):
+    """Returns `train_step(state, batch, key) -> (state, metrics)` for `loss_fn(params, frozen, batch, key)`.
 
-    def train_step(state: TrainState, batch, key):
-        (loss, metrics), grads = jax.value_and_grad(loss_fn, has_aux=True)(state.params, state.frozen, batch, key)
-        updates, opt_state = tx.update(grads, state.opt_state, state.params)
-        params = optax.apply_updates(state.params, updates)
-        metrics = dict(metrics, loss=loss, grad_norm=optax.tree.norm(grads))
-        return state.replace(step=state.step + 1, params=params, opt_state=opt_state), metrics
-
-    return train_step
+    Data-parallel over `mesh` (default `distributed.data_mesh()`), one gradient all-reduce per step:
+    each device computes its rows' loss and gradient in full, then one `pmean` over the "data" axis
+    averages the gradients and metrics (so `loss_fn` must be a mean over the windows of its batch, or
+    reduce across windows through `distributed.batch_sum` / `batch_mean`). With `micro_batches` m > 1
+    each device's rows are taken in m consecutive micro-batches, their gradients summed in a scan and
+    divided by m before the one reduction (gradient accumulation: the global batch's gradient with a
+    device holding the activations of only one micro-batch). The batch size must be a multiple of
+    the device count times m.
+    """
+    return _data_parallel_step(_grads(loss_fn, batch_norm=False), tx, mesh, micro_batches, batch_norm=False)
 
 
 # Models with BatchNorm (DivSamp's GCNs, any other): `TrainState.params` is the full variable
@@ -101,22 +104,82 @@ def bn_optimizer(inner: optax.GradientTransformation) -> optax.GradientTransform
     return optax.multi_transform({"train": inner, "stats": optax.set_to_zero()}, labels)
 
 
-def make_bn_train_step(loss_fn, tx: optax.GradientTransformation):
+def make_bn_train_step(loss_fn, tx: optax.GradientTransformation, *, mesh: Mesh | None = None, micro_batches: int = 1):
     """Returns `train_step(state, batch, key) -> (state, metrics)` for a model with BatchNorm.
 
     `loss_fn(variables, frozen, batch, key) -> (loss, (metrics, new_batch_stats))`; `state.params`
-    is the variable dict. As `loop.make_train_step`, plus writing the new statistics.
+    is the variable dict. As `make_train_step`, plus writing the new statistics. BatchNorm's batch
+    moments are those of the whole global batch (`nn.batchnorm.BatchNorm` averages them over the
+    devices); with micro-batches they are each micro-batch's, and the running statistics follow the
+    micro-batches in turn.
     """
+    return _data_parallel_step(_grads(loss_fn, batch_norm=True), tx, mesh, micro_batches, batch_norm=True)
 
-    def train_step(state: TrainState, batch, key):
-        grad_fn = jax.value_and_grad(loss_fn, has_aux=True)
-        (loss, (metrics, stats)), grads = grad_fn(state.params, state.frozen, batch, key)
-        updates, opt_state = tx.update(grads, state.opt_state, state.params)
-        params = dict(optax.apply_updates(state.params, updates), batch_stats=stats)
-        metrics = dict(metrics, loss=loss, grad_norm=optax.tree.norm(grads["params"]))
+
+def _grads(loss_fn, *, batch_norm: bool):
+    """Returns `grads(params, frozen, batch, key) -> (loss, metrics, grads, new batch_stats or None)` of one device's rows."""
+    if not batch_norm:
+        def grads(params, frozen, batch, key):
+            (loss, metrics), g = jax.value_and_grad(loss_fn, has_aux=True)(params, frozen, batch, key)
+            return loss, metrics, g, None
+    else:  # the gradient of the statistics is zero (the loss normalises by the batch's moments), bn_optimizer ignores it
+        def grads(variables, frozen, batch, key):
+            (loss, (metrics, stats)), g = jax.value_and_grad(loss_fn, has_aux=True)(variables, frozen, batch, key)
+            return loss, metrics, g, stats
+    return grads
+
+
+def _data_parallel_step(grads, tx, mesh: Mesh | None, micro_batches: int, *, batch_norm: bool):
+    mesh = data_mesh() if mesh is None else mesh
+    n, m = mesh.shape[distributed.DATA], int(micro_batches)
+    if m < 1:
+        raise ValueError(f"micro_batches must be >= 1, got {micro_batches}")
+
+    def local(state: TrainState, batch, key):  # one device's rows of the batch
+        device = jax.lax.axis_index(distributed.DATA) if n > 1 else 0
+        if m == 1:
+            with distributed.batch_part(device, n):
+                loss, metrics, g, stats = grads(state.params, state.frozen, batch, key)
+        else:
+            loss, metrics, g, stats = _accumulate(grads, state, batch, key, device, n, m, batch_norm)
+        if n > 1:  # the step's one all-reduce, of one array: between processes each collective costs a round trip
+            flat, unravel = ravel_pytree((loss, metrics, g))
+            loss, metrics, g = unravel(jax.lax.pmean(flat, distributed.DATA))
+        updates, opt_state = tx.update(g, state.opt_state, state.params)
+        params = optax.apply_updates(state.params, updates)
+        if batch_norm:
+            params = dict(params, batch_stats=stats)
+        metrics = dict(metrics, loss=loss, grad_norm=optax.tree.norm(g["params"] if batch_norm else g))
         return state.replace(step=state.step + 1, params=params, opt_state=opt_state), metrics
 
-    return train_step
+    if n == 1:  # one device: the step itself, the program a step without a mesh compiles to
+        return local
+    # Unchecked replication: the outputs are equal on every device because they come from the pmean.
+    spec = PartitionSpec(distributed.DATA)
+    return jax.shard_map(local, mesh=mesh, in_specs=(PartitionSpec(), spec, PartitionSpec()),
+                         out_specs=(PartitionSpec(), PartitionSpec()), check_vma=False)
+
+
+def _accumulate(grads, state: TrainState, batch, key, device, n: int, m: int, batch_norm: bool):
+    """Returns `(loss, metrics, grads, batch_stats)` of a device's rows as the mean over `m` consecutive micro-batches."""
+    micro = jax.tree.map(lambda a: a.reshape((m, a.shape[0] // m) + a.shape[1:]), batch)
+
+    def one(j, b, params):
+        with distributed.batch_part(device * m + j, n * m):
+            return grads(params, state.frozen, b, key)
+
+    def body(carry, xs):
+        total, params = carry
+        loss, metrics, g, stats = one(xs[0], xs[1], params)
+        total = jax.tree.map(jnp.add, total, (loss, metrics, g))
+        return (total, dict(params, batch_stats=stats) if batch_norm else params), None
+
+    loss, metrics, g, stats = one(0, jax.tree.map(lambda a: a[0], micro), state.params)
+    params = dict(state.params, batch_stats=stats) if batch_norm else state.params
+    rest = (jnp.arange(1, m), jax.tree.map(lambda a: a[1:], micro))
+    (total, params), _ = jax.lax.scan(body, ((loss, metrics, g), params), rest)
+    loss, metrics, g = jax.tree.map(lambda t: t / m, total)
+    return loss, metrics, g, params["batch_stats"] if batch_norm else None
 
 
 def fit(
@@ -134,6 +197,7 @@ def fit(
     evaluate: Callable[[Any], dict | None] | None = None,
     eval_every: int = 0,
     mesh: Mesh | None = None,
+    micro_batches: int = 1,
 ) -> TrainState:
     """Returns the trained state after `num_steps` steps, checkpointing into `workdir/ckpt`.
 
@@ -152,7 +216,8 @@ def fit(
 
     Each batch is split over the devices of `mesh` (default `distributed.data_mesh()`: every device of
     every process), so its size must be a multiple of their number (`ConfigError` otherwise, before
-    the first step). With several processes every one of them calls `fit` with the same arguments and
+    the first step), times `micro_batches` when `train_step` accumulates over micro-batches
+    (`make_train_step`, made for the same mesh). With several processes every one of them calls `fit` with the same arguments and
     draws the same global batches; `evaluate` runs in all of them, only process 0 logs.
     """
     workdir = Path(workdir).absolute()
@@ -224,7 +289,7 @@ def fit(
         for step in range(start, num_steps):
             batch = sample_batch(np.random.default_rng([seed, step]))
             if step == start:
-                distributed.check_batch(batch, mesh, f"stage {desc!r}")
+                distributed.check_batch(batch, mesh, f"stage {desc!r}", micro_batches)
             batch = distributed.global_batch(batch, batch_sharding)
             state, metrics = step_fn(state, batch, jax.random.fold_in(key, step))
             done = step + 1

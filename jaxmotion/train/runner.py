@@ -97,11 +97,11 @@ def check_stage_dir(method: Method, stage: Stage, state: TrainState, stage_dir: 
             )
 
 
-def _train_step(stage: Stage):
+def _train_step(stage: Stage, micro_batches: int = 1):
     if stage.num_steps == 0:  # a computed stage: `fit` only checkpoints its parameters
         return lambda state, batch, key: (state, {})
     make = make_bn_train_step if stage.batch_norm else make_train_step
-    return make(stage.loss, stage.optimizer)
+    return make(stage.loss, stage.optimizer, micro_batches=micro_batches)
 
 
 # `curve(params) -> dict | None`: a learning-curve point for `{stage name: parameters}` of the stages so far.
@@ -162,12 +162,13 @@ def run_stage(
     if not manifest.exists() and distributed.is_main():
         # Written whole or not at all: a kill mid-write must not leave a manifest that stops `--resume`.
         write_text_atomic(manifest, json.dumps(_manifest(method, stage, state, upstream), indent=1))
+    micro_batches = getattr(cfg, "micro_batches", 1)
     state = fit(
-        state, _train_step(stage), stage.batches or (lambda rng: None), num_steps=stage.num_steps, workdir=stage_dir,
+        state, _train_step(stage, micro_batches), stage.batches or (lambda rng: None), num_steps=stage.num_steps, workdir=stage_dir,
         seed=stage.data_seed, resume=resume, ckpt_every=cfg.ckpt_every, log_every=cfg.log_every,
         desc=f"{method.name} {stage.name}",
         evaluate=None if curve is None else (lambda p: curve({**trained, stage.name: p})),
-        eval_every=getattr(cfg, "curve_every", 0),
+        eval_every=getattr(cfg, "curve_every", 0), micro_batches=micro_batches,
     )
     return state.params
 
@@ -215,7 +216,7 @@ def train(method: Method, cfg, prep, workdir: str | Path, resume: bool = False, 
     for stage in stages:  # a batch that does not split over the devices is reported before any stage trains
         if stage.num_steps:
             distributed.check_batch(stage.batches(np.random.default_rng([stage.data_seed, 0])), mesh,
-                                    f"stage {stage.name!r} of method {method.name!r}")
+                                    f"stage {stage.name!r} of method {method.name!r}", getattr(cfg, "micro_batches", 1))
     for stage in stages:
         trained[stage.name] = run_stage(
             method, stage, cfg, workdir, trained, resume, {n: steps[n] for n in stage.frozen}, curve
