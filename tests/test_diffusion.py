@@ -212,3 +212,12 @@ def test_the_method_trains_and_evaluates_from_the_command_line(tmp_path, capsys)
     assert (work / "diffusion" / "ckpt").is_dir()
     assert main(["methods"]) == 0
     assert "diffusion" in capsys.readouterr().out
+    # `jaxmotion predict` draws the run's futures from a clip, as for every method.
+    from jaxmotion.data.synthetic import make_synthetic
+
+    ds = make_synthetic(0)
+    np.savez(tmp_path / "clip.npz", positions=ds.test[0].positions[:80], names=np.array(ds.skeleton.names), fps=30.0)
+    assert main(["predict", str(work), "--input", str(tmp_path / "clip.npz"), "--k", "3", "--out", str(tmp_path / "pred")]) == 0
+    out = np.load(tmp_path / "pred" / "futures.npz")
+    assert out["futures"].shape == (3, 60, 48) and str(out["method"]) == "diffusion"
+    assert np.all(np.isfinite(out["futures"])) and len(list((tmp_path / "pred").glob("future_*.bvh"))) == 3
