@@ -17,7 +17,11 @@ from typing import Callable
 
 import numpy as np
 
-MODELS = ("dlow", "mojo", "divsamp", "gsps", "motionmap")
+MODELS = ("dlow", "mojo", "divsamp", "gsps", "motionmap", "diffusion")
+# The diffusion predictor's denoiser in the benchmark: `DiffusionConfig`'s defaults (sized for Bandai-Namco-2
+# on a CPU; tests/test_torch_parity_diffusion.py checks they agree), 1000 noise steps on the cosine schedule.
+DIFFUSION_SIZES = dict(n_dct=15, latent=64, ff=128, num_layers=4, num_heads=4)
+DIFFUSION_NOISE_STEPS = 1000
 
 
 @dataclasses.dataclass
@@ -55,6 +59,9 @@ class Settings:
     decoder_backward: str = "batched"  # GRUCVAE.decoder_backward of the same (benchmarks/ab.py --ab decoder_backward)
     gcn_node_major: bool = True  # the GCL stacks' layout in DivSamp and GSPS (benchmarks/ab.py --ab gcn_node_major)
     gsps_best_of: str = "gram"  # how GSPS's loss forms its best-of-K errors (generator_loss best_of; ab.py --ab gsps_best_of)
+    ddim_steps: tuple[int, ...] = (100, 10)  # the diffusion predictor's DDIM steps, each timed at every sampling batch
+    ddim_warmup: int = 1  # the diffusion cases' own warm-up and repeat counts: one K = 50 batch of 64 at 100 steps
+    ddim_repeats: int = 3  # is tens of seconds per call in PyTorch on a 2-core CPU
 
     @classmethod
     def from_dict(cls, d: dict) -> "Settings":
@@ -71,7 +78,7 @@ class Settings:
     def quick(cls, **kw) -> "Settings":
         """Returns tiny settings for a smoke test (seconds, not minutes; numbers not meaningful)."""
         base = dict(train_batch=8, sampler_batch=2, k=5, sample_batches=(1, 4), k_sweep=(1, 20), t_pred_sweep=(10, 30),
-                    t_pred=30, warmup=1, repeats=2, probe_n=256, gsps_nk=(2, 2), gsps_mm=3, hm_size=16, hm_members=4, peak_sizes=(256, 512))
+                    t_pred=30, warmup=1, repeats=2, probe_n=256, ddim_steps=(10, 5), ddim_repeats=2, gsps_nk=(2, 2), gsps_mm=3, hm_size=16, hm_members=4, peak_sizes=(256, 512))
         base.update(kw)
         return cls(**base)
 
@@ -86,6 +93,7 @@ class Case:
     batch: int
     k: int = 0
     t_pred: int = 0
+    steps: int = 0  # sampling steps (the diffusion predictor's DDIM)
 
     @property
     def name(self) -> str:
@@ -94,7 +102,14 @@ class Case:
             parts.append(f"k{self.k}")
         if self.t_pred:
             parts.append(f"t{self.t_pred}")
+        if self.steps:
+            parts.append(f"s{self.steps}")
         return "/".join(parts)
+
+
+def timing(s: "Settings", c: Case) -> tuple[int, int]:
+    """Returns `(warmup, repeats)` for case `c`: the diffusion sampler's own counts, every other case's `s.warmup, s.repeats`."""
+    return (s.ddim_warmup, s.ddim_repeats) if c.kind == "sample_ddim" else (s.warmup, s.repeats)
 
 
 def plan(s: Settings) -> list[Case]:
@@ -107,12 +122,17 @@ def plan(s: Settings) -> list[Case]:
     first stages' batch, as does its heatmap stage's step (`k` = the multimodal futures drawn into each
     target map; the targets are built inside the step from a pool of map cells, as in training), and
     its heatmap network's forward pass (the map of every window, sigmoid included) at the sampling batches.
+    The diffusion predictor is timed sampling K futures (DDIM with DCT completion) at each of `ddim_steps`
+    and each sampling batch.
     """
     cases = []
     for m in s.models:
         if m == "gsps":
             cases.append(Case(m, "train_generator", s.sampler_batch, k=s.gsps_nk[0] * s.gsps_nk[1], t_pred=s.t_pred))
             cases += [Case(m, "sample", b, k=s.k, t_pred=s.t_pred) for b in s.sample_batches]
+            continue
+        if m == "diffusion":
+            cases += [Case(m, "sample_ddim", b, k=s.k, t_pred=s.t_pred, steps=n) for n in s.ddim_steps for b in s.sample_batches]
             continue
         if m == "motionmap":
             cases.append(Case(m, "train_ae", s.train_batch, t_pred=s.t_pred))

@@ -23,8 +23,9 @@ import numpy as np
 import optax
 
 from benchmarks import flops
-from benchmarks.harness import Case, PeakRSS, Settings, gsps_skeleton, heatmap_batch, measure, parents_for, plan, reference_probe
-from jaxmotion.models import divsamp, dlow, gsps, mojo
+from benchmarks.harness import (DIFFUSION_NOISE_STEPS, DIFFUSION_SIZES, Case, PeakRSS, Settings, gsps_skeleton, heatmap_batch,
+                               measure, parents_for, plan, reference_probe, timing)
+from jaxmotion.models import diffusion, divsamp, dlow, gsps, mojo
 from jaxmotion.models import motionmap as mm
 from jaxmotion.train.loop import bn_optimizer, make_bn_train_step
 from jaxmotion.train.loop import create_state, make_train_step
@@ -209,6 +210,17 @@ class Builders:
         return _sample_runner(lambda p, x: jax.nn.sigmoid(hm.apply(p, x)), p, x)
 
 
+    # --- Diffusion -------------------------------------------------------------------------------
+    def diffusion(self, c: Case):
+        s = self.s
+        model = diffusion.Denoiser(dim=s.dim, precision=s.precision, **DIFFUSION_SIZES)
+        x0 = jnp.zeros((1, model.n_dct, s.dim))
+        p = model.init(jax.random.key(0), x0, jnp.ones((1,), jnp.int32), x0, jnp.ones((1,)))
+        abar = diffusion.schedule("cosine", DIFFUSION_NOISE_STEPS)
+        fn = lambda p, x, key: diffusion.sample(model, p, x, key, c.k, t_pred=c.t_pred, abar=abar, sampling_steps=c.steps)
+        return _sample_runner(fn, p, self.data(c.batch, s.t_his), jax.random.key(2))
+
+
 def matmul_probe(n: int):
     """Returns a call that runs one fixed n x n float32 product in jax (`harness.measure`'s machine-speed gate), or None for n = 0."""
     if not n:
@@ -234,7 +246,7 @@ def main():
         t0 = time.perf_counter()
         run, trace_s, compile_s = getattr(builders, c.model)(c)
         rec = dict(dataclasses.asdict(c), case=c.name, framework="jax", trace_s=trace_s, compile_s=compile_s)
-        rec.update(measure(run, s.warmup, s.repeats, probe, ref, s.slow_factor, s.probe_min_call_s))
+        rec.update(measure(run, *timing(s, c), probe, ref, s.slow_factor, s.probe_min_call_s))
         rec.update(rss_before_mb=rss0, peak_rss_mb=mem.peak_mb(), wall_s=time.perf_counter() - t0)
         # After the timings and the memory peak: counting lowers the case once more, with its loops unrolled.
         rec.update(run.count(), xla_compiled_flops=float(run.compiled.cost_analysis()["flops"]))

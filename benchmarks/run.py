@@ -36,7 +36,7 @@ sys.path.insert(0, str(ROOT))
 from benchmarks.harness import MODELS, Settings, machine  # noqa: E402
 from jaxmotion import hugepages  # noqa: E402
 
-TARGETS = {"train": 1.5, "sample_k50": 2.0}  # jaxmotion / PyTorch-eager speed-ups asked for (issue 18)
+TARGETS = {"train": 1.5, "sample_k50": 2.0, "ddim_100": 3.0}  # jaxmotion / PyTorch-eager speed-ups asked for
 # Issue 18: a case whose jaxmotion time is above this fraction of the measured peak is limited by the machine.
 MACHINE_LIMITED = 0.6
 BEGIN, END = "<!-- results:begin -->", "<!-- results:end -->"
@@ -82,12 +82,15 @@ def run_peak(framework: str, settings: Settings, env: dict) -> dict:
         return json.loads(out.read_text())
 
 
+ROW_KEYS = ("case", "model", "kind", "batch", "k", "t_pred", "steps")  # a case's fields in a row (`steps`: 0 in older files)
+
+
 def merge(results: dict[str, dict]) -> list[dict]:
     """Returns one row per case with every framework's record and the ratios to jaxmotion."""
     rows: dict[str, dict] = {}
     for fw, res in results.items():
         for r in res["records"]:
-            row = rows.setdefault(r["case"], {k: r[k] for k in ("case", "model", "kind", "batch", "k", "t_pred")})
+            row = rows.setdefault(r["case"], {k: r.get(k, 0) for k in ROW_KEYS})
             row[fw] = {k: v for k, v in r.items() if k not in row}
     for row in rows.values():
         jax_t = row.get("jax", {}).get("median_s")
@@ -176,6 +179,8 @@ def _target(row: dict, s: Settings, peak: float | None = None) -> str:
         goal = TARGETS["train"]
     elif row["kind"] == "sample" and row["k"] == s.k:
         goal = TARGETS["sample_k50"]
+    elif row["kind"] == "sample_ddim" and row.get("steps") == 100 and row["k"] == s.k:
+        goal = TARGETS["ddim_100"]
     else:
         return ""
     if r is None:
@@ -233,6 +238,7 @@ def render(doc: dict) -> str:
             lines.append(f"| {r['model']} | {r['batch']} | {_ms(r.get('jax'))} | {_ms(r.get('torch_eager'))} | "
                          f"{_ms(r.get('torch_compile'))} | {_ratio(r, 'torch_eager')} | {_ratio(r, 'torch_compile')} | "
                          f"{_gflop(r)} | {_pcts(r, compiled, peak)} | {_target(r, s, peak)} |")
+    lines += _ddim_table(rows, s, peak)
     heat = [r for r in rows if r["kind"] == "heatmap"]
     if heat:
         lines += [
@@ -279,6 +285,30 @@ def render(doc: dict) -> str:
             tc = f"{c['compile_s']:.0f}" if c.get("compile_s") == c.get("compile_s") and "compile_s" in c else "-"
             lines.append(f"| {r['case']} | {mb(j)} | {mb(e)} | {comp} | {tc} |")
     return "\n".join(lines)
+
+
+def _ddim_table(rows: list[dict], s: Settings, peak: float | None) -> list[str]:
+    """Returns the diffusion predictor's sampling table (DDIM with DCT completion, by steps and batch); nothing without its rows."""
+    ddim = sorted((r for r in rows if r["kind"] == "sample_ddim"), key=lambda r: (-r["steps"], r["batch"]))
+    if not ddim:
+        return []
+    lines = [
+        "",
+        f"### Diffusion sampling: K = {s.k} futures by DDIM with DCT completion (jaxmotion: one `lax.scan` over the "
+        "steps, vmapped over K; PyTorch: the release's Python loop over the steps)",
+        "",
+        f"Denoiser of `DiffusionConfig`'s defaults (Bandai CPU sizes). Median of {s.ddim_repeats} calls after "
+        f"{s.ddim_warmup} warm-up call(s).",
+        "",
+        "| DDIM steps | batch | jaxmotion ms | PyTorch eager ms | torch.compile ms | ratio (eager) | ratio (compile) | GFLOP | % of peak jax / eager / compile | target |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    compiled = ("jax", "torch_eager", "torch_compile")
+    for r in ddim:
+        lines.append(f"| {r['steps']} | {r['batch']} | {_ms(r.get('jax'))} | {_ms(r.get('torch_eager'))} | "
+                     f"{_ms(r.get('torch_compile'))} | {_ratio(r, 'torch_eager')} | {_ratio(r, 'torch_compile')} | "
+                     f"{_gflop(r)} | {_pcts(r, compiled, peak)} | {_target(r, s, peak)} |")
+    return lines
 
 
 def _slow_sentence(doc: dict, s: Settings) -> str:
@@ -434,7 +464,7 @@ def main(argv=None):
         settings = Settings.from_record(previous["settings"])
         for fw, w in previous["workers"].items():
             if fw not in frameworks:
-                results[fw] = {"info": w["info"], "records": [r[fw] | {k: r[k] for k in ("case", "model", "kind", "batch", "k", "t_pred")}
+                results[fw] = {"info": w["info"], "records": [r[fw] | {k: r.get(k, 0) for k in ROW_KEYS}
                                                               for r in previous["rows"] if fw in r]}
     t0 = time.perf_counter()
     peaks = dict(previous.get("peak", {})) if previous else {}

@@ -18,8 +18,9 @@ import time
 import numpy as np
 import torch
 
-from benchmarks.harness import Case, PeakRSS, Settings, gsps_skeleton, heatmap_batch, measure, parents_for, plan, reference_probe
-from benchmarks.torch_ref import divsamp, dlow, gsps, mojo, motionmap
+from benchmarks.harness import (DIFFUSION_NOISE_STEPS, DIFFUSION_SIZES, Case, PeakRSS, Settings, gsps_skeleton, heatmap_batch,
+                               measure, parents_for, plan, reference_probe, timing)
+from benchmarks.torch_ref import diffusion, divsamp, dlow, gsps, mojo, motionmap
 
 
 class Builders:
@@ -169,6 +170,17 @@ class Builders:
         return self._sample(lambda: torch.sigmoid(hm(x)))
 
 
+    # --- Diffusion -------------------------------------------------------------------------------
+    def diffusion(self, c: Case):
+        s = self.s
+        model = diffusion.Denoiser(s.dim, **DIFFUSION_SIZES).eval()  # eval: dropout off, as at test time
+        abar, t_seq, t_prev = diffusion.ddim_schedule(DIFFUSION_NOISE_STEPS, c.steps)
+        mask = diffusion.completion_mask(s.t_his + c.t_pred, s.dim, s.t_his)
+        x = self.data(c.batch, s.t_his)
+        return self._sample(lambda: diffusion.sample_ddim(model, x, c.k, t_pred=c.t_pred, n_dct=model.n_dct, abar=abar,
+                                                          t_seq=t_seq, t_prev=t_prev, mask=mask))
+
+
 def matmul_probe(n: int):
     """Returns a call that runs one fixed n x n float32 product in PyTorch (`harness.measure`'s machine-speed gate), or None for n = 0."""
     if not n:
@@ -209,7 +221,7 @@ def main():
             print(f"{fw} {c.name}: FAILED {rec['error']}", flush=True)
             continue
         rec["compile_s"] = builders.compile_s
-        rec.update(measure(run, s.warmup, s.repeats, probe, ref, s.slow_factor, s.probe_min_call_s))
+        rec.update(measure(run, *timing(s, c), probe, ref, s.slow_factor, s.probe_min_call_s))
         rec.update(rss_before_mb=rss0, peak_rss_mb=mem.peak_mb(), wall_s=time.perf_counter() - t0)
         records.append(rec)
         print(f"{fw} {c.name}: {rec['median_s'] * 1e3:.2f} ms", flush=True)

@@ -15,7 +15,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from benchmarks.torch_ref import divsamp, dlow, gsps, mojo, motionmap
+from benchmarks.torch_ref import diffusion, divsamp, dlow, gsps, mojo, motionmap
 from benchmarks.torch_ref.layers import GRU, MLP
 
 
@@ -226,6 +226,39 @@ def motionmap_heatmap(model: motionmap.HeatmapNet, params: Mapping) -> motionmap
     for i, conv in enumerate(model.convs):
         load_conv1x1(conv, p[f"conv_{i}"], f"conv_{i}")
     load_conv1x1(model.final, p["final"], "final")
+    return model
+
+
+def load_layer_norm(norm: nn.LayerNorm, p: Mapping, name: str = "norm") -> None:
+    """Copies a Flax `LayerNorm` (`scale`, `bias`) into `nn.LayerNorm`."""
+    _copy(norm.weight, _t(p["scale"]), f"{name}.scale")
+    _copy(norm.bias, _t(p["bias"]), f"{name}.bias")
+
+
+def _load_stylization(st: diffusion.Stylization, p: Mapping, name: str) -> None:
+    load_dense(st.emb, p["emb"], f"{name}.emb")
+    load_layer_norm(st.norm, p["norm"], f"{name}.norm")
+    load_dense(st.out, p["out"], f"{name}.out")
+
+
+def diffusion_denoiser(model: diffusion.Denoiser, params: Mapping) -> diffusion.Denoiser:
+    """Returns `model` holding the jaxmotion diffusion `Denoiser` `params` (bias-free query/key/value included)."""
+    p = _inner(params)
+    for name in ("time_in", "time_out", "cond_embed", "joint_embed", "out"):
+        load_dense(getattr(model, name), p[name], name)
+    _copy(model.sequence_embedding, _t(p["sequence_embedding"]), "sequence_embedding")
+    n = sum(k.startswith("block_") for k in p)
+    if n != len(model.blocks):
+        raise ValueError(f"diffusion_denoiser: {n} jaxmotion blocks, {len(model.blocks)} PyTorch")
+    for i, block in enumerate(model.blocks):
+        b, name = p[f"block_{i}"], f"block_{i}"
+        load_layer_norm(block.attn_norm, b["attn_norm"], f"{name}.attn_norm")
+        for w in ("query", "key", "value"):
+            _copy(getattr(block, w).weight, _t(b[w]["kernel"]).T, f"{name}.{w}.kernel")
+        _load_stylization(block.attn_style, b["attn_style"], f"{name}.attn_style")
+        load_dense(block.ff_in, b["ff_in"], f"{name}.ff_in")
+        load_dense(block.ff_out, b["ff_out"], f"{name}.ff_out")
+        _load_stylization(block.ff_style, b["ff_style"], f"{name}.ff_style")
     return model
 
 

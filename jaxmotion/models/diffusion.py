@@ -1,0 +1,398 @@
+"""A DCT-space diffusion predictor of the HumanMAC class (Chen et al., ICCV 2023).
+
+The window of `t_his + t_pred` frames lives in DCT space: its first `n_dct` coefficients along time
+(`jaxmotion.dct`) are the diffusion variable `x0 (n_dct, D)`. Training is DDPM's noise prediction
+(Ho et al. 2020, Eq. (14)): `x_t = sqrt(abar_t) x0 + sqrt(1 - abar_t) eps` with the cosine schedule of
+Nichol & Dhariwal (2021, Eq. (17)), and the loss `||eps - eps_theta(x_t, t, c)||^2`. The condition `c`
+is the DCT of the observed frames padded with the last observed pose (HumanMAC Sec. 3.2), dropped for
+a fraction of training samples. The denoiser is a transformer over the `n_dct` coefficients whose
+every block is modulated by the timestep (+ condition) embedding (stylization / FiLM: LayerNorm, then
+`* (1 + scale) + shift`), with long skips from the first half of the blocks to the second.
+
+Sampling is DDIM (Song et al. 2021, Eq. (12) with sigma = 0) on a sub-sequence of the training
+timesteps, with HumanMAC's DCT completion (Sec. 3.3, Eq. (6)-(7)) after each step: the padded
+observation is noised to the step's level, both it and the sample go back to time, the masked
+(observed) frames are taken from the observation, and the result returns to DCT space. The whole
+loop is one `lax.scan`, vmapped over the K samples.
+
+Sizes follow the release's `cfg/h36m.yml` (8 blocks, 8 heads, width 512, 20 coefficients, 1000
+noise steps, 100 DDIM steps, condition kept for 80% of training samples, EMA 0.995 after 2000 steps).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import NamedTuple
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+from jaxtyping import Array, ArrayLike, Float, Int
+
+from jaxmotion.dct import dct, idct
+from jaxmotion.nn.linear import Dense, initializers
+from jaxmotion.nn.precision import matmul
+
+__all__ = ["DiffusionConfig", "Denoiser", "denoiser", "cosine_betas", "linear_betas", "Schedule", "schedule",
+           "ddim_timesteps", "pad_last", "condition", "q_sample", "diffusion_loss", "completion_mask", "ddim_sample",
+           "sample", "ema_weights"]
+
+SCHEDULES = ("cosine", "linear")
+
+
+@dataclasses.dataclass
+class DiffusionConfig:
+    """The diffusion predictor's settings (`Config.method_config` of method "diffusion").
+
+    The defaults are sized for Bandai-Namco-2 on a CPU; `experiments/configs/diffusion_h36m.py` has
+    the release's Human3.6M sizes.
+    """
+
+    n_dct: int = 15  # DCT coefficients of the whole window kept (the release: 20 of 125 frames)
+    latent: int = 64  # transformer width (the release: 512)
+    ff: int = 128  # feed-forward width (the release: 1024)
+    num_layers: int = 4  # blocks, an even number: the first half's inputs skip to the second half (the release: 8)
+    num_heads: int = 4  # (the release: 8)
+    dropout: float = 0.2
+    noise_steps: int = 1000  # training timesteps T of the forward process
+    schedule: str = "cosine"  # "cosine" (the release's) or "linear"
+    sampling_steps: int = 25  # DDIM steps at test time, dividing noise_steps: 10 / 25 / 50 / 100 (the release: 100)
+    cond_drop: float = 0.2  # fraction of training samples whose condition is dropped (the release keeps 0.8)
+    # DCT completion's mask: the first `complete_frames` frames of the window (all coordinates) are taken
+    # from the noised observation after every step; None: the t_his observed frames; 0: no completion.
+    complete_frames: int | None = None
+    ema_decay: float = 0.995
+    ema_start: int = 500  # steps before the EMA starts averaging (it copies the weights until then; the release: 2000)
+    lr: float = 3e-4
+    batch_size: int = 64
+    num_steps: int = 6000
+    lr_fix_fraction: float = 0.5  # constant lr for this fraction of training, then linear decay to 0
+    dense_init: str = "torch"  # the release's nn.Linear initialisation ("flax": nn.Dense's)
+
+    def __post_init__(self):
+        for name in ("n_dct", "latent", "ff", "num_layers", "num_heads", "noise_steps", "sampling_steps", "batch_size"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or v < 1:
+                raise ValueError(f"DiffusionConfig.{name} must be an integer >= 1, got {v!r}")
+        if self.num_layers % 2:
+            raise ValueError(f"DiffusionConfig.num_layers must be even (long skips pair the halves), got {self.num_layers}")
+        if self.latent % self.num_heads:
+            raise ValueError(f"DiffusionConfig.latent ({self.latent}) must be a multiple of num_heads ({self.num_heads})")
+        if self.schedule not in SCHEDULES:
+            raise ValueError(f"DiffusionConfig.schedule must be one of {SCHEDULES}, got {self.schedule!r}")
+        if self.sampling_steps > self.noise_steps or self.noise_steps % self.sampling_steps:
+            raise ValueError(
+                f"DiffusionConfig.sampling_steps ({self.sampling_steps}) must divide noise_steps ({self.noise_steps})"
+            )
+        if not 0.0 <= self.cond_drop < 1.0:
+            raise ValueError(f"DiffusionConfig.cond_drop must be in [0, 1), got {self.cond_drop}")
+        if not 0.0 <= self.dropout < 1.0:
+            raise ValueError(f"DiffusionConfig.dropout must be in [0, 1), got {self.dropout}")
+        if not 0.0 <= self.ema_decay < 1.0:
+            raise ValueError(f"DiffusionConfig.ema_decay must be in [0, 1), got {self.ema_decay}")
+        if self.complete_frames is not None and self.complete_frames < 0:
+            raise ValueError(f"DiffusionConfig.complete_frames must be None or >= 0, got {self.complete_frames}")
+        if self.num_steps < 0 or self.ema_start < 0:
+            raise ValueError(f"DiffusionConfig.num_steps and ema_start must be >= 0, got {self.num_steps}, {self.ema_start}")
+
+
+# ---------------------------------------------------------------------------------------------
+# The denoiser.
+
+
+def timestep_embedding(t: Int[ArrayLike, " b"], dim: int, max_period: float = 10000.0) -> Float[Array, "b dim"]:
+    """Returns the sinusoidal embedding `[cos(t w_i), sin(t w_i)]`, `w_i = max_period^(-i / (dim/2))`."""
+    half = dim // 2
+    freqs = jnp.exp(-math.log(max_period) * jnp.arange(half, dtype=jnp.float32) / half)
+    args = jnp.asarray(t, jnp.float32)[:, None] * freqs[None]
+    emb = jnp.concatenate([jnp.cos(args), jnp.sin(args)], axis=-1)
+    return jnp.pad(emb, ((0, 0), (0, dim % 2)))
+
+
+class ZeroDense(nn.Module):
+    """A dense layer initialised to zero (the release's `zero_module`): the block it closes starts as the identity."""
+
+    features: int
+    precision: str = "float32"
+
+    @nn.compact
+    def __call__(self, x):
+        kernel = self.param("kernel", nn.initializers.zeros_init(), (x.shape[-1], self.features), jnp.float32)
+        bias = self.param("bias", nn.initializers.zeros_init(), (self.features,), jnp.float32)
+        return matmul(x, kernel, self.precision) + bias
+
+
+class Stylization(nn.Module):
+    """Returns `out(dropout(silu(LN(h) * (1 + scale) + shift)))`, `(scale, shift)` a linear map of `silu(emb)` (FiLM)."""
+
+    latent: int
+    dropout: float
+    dense_init: str = "torch"
+    precision: str = "float32"
+
+    @nn.compact
+    def __call__(self, h, emb, deterministic: bool):
+        ss = Dense(2 * self.latent, rule=self.dense_init, precision=self.precision, name="emb")(nn.silu(emb))[:, None]
+        scale, shift = jnp.split(ss, 2, axis=-1)
+        h = nn.LayerNorm(epsilon=1e-5, name="norm")(h) * (1.0 + scale) + shift
+        h = nn.Dropout(self.dropout)(nn.silu(h), deterministic=deterministic)
+        return ZeroDense(self.latent, self.precision, name="out")(h)
+
+
+class NoBiasDense(nn.Module):
+    """A dense layer without bias (attention's query, key and value), initialised by `rule` as `Dense`'s kernel."""
+
+    features: int
+    rule: str = "torch"
+    precision: str = "float32"
+
+    @nn.compact
+    def __call__(self, x):
+        k_init, _ = initializers(self.rule, x.shape[-1])
+        kernel = self.param("kernel", k_init, (x.shape[-1], self.features), jnp.float32)
+        return matmul(x, kernel, self.precision)
+
+
+class Block(nn.Module):
+    """One transformer block over the coefficients: self-attention, then a feed-forward layer, each closed by `Stylization`."""
+
+    latent: int
+    ff: int
+    num_heads: int
+    dropout: float
+    dense_init: str = "torch"
+    precision: str = "float32"
+
+    @nn.compact
+    def __call__(self, h: Float[Array, "b n c"], emb: Float[Array, "b c"], deterministic: bool):
+        b, n, c = h.shape
+        nh, mm, rule = self.num_heads, self.precision, self.dense_init
+        hn = nn.LayerNorm(epsilon=1e-5, name="attn_norm")(h)
+        q, k, v = (NoBiasDense(c, rule, mm, name=w)(hn).reshape(b, n, nh, c // nh) for w in ("query", "key", "value"))
+        w = jax.nn.softmax(jnp.einsum("bnhd,bmhd->bnmh", q, k) / math.sqrt(c // nh), axis=2)
+        w = nn.Dropout(self.dropout)(w, deterministic=deterministic)
+        y = jnp.einsum("bnmh,bmhd->bnhd", w, v).reshape(b, n, c)
+        h = h + Stylization(c, self.dropout, rule, mm, name="attn_style")(y, emb, deterministic)
+        y = nn.gelu(Dense(self.ff, rule=rule, precision=mm, name="ff_in")(h), approximate=False)
+        y = ZeroDense(c, mm, name="ff_out")(nn.Dropout(self.dropout)(y, deterministic=deterministic))
+        return h + Stylization(c, self.dropout, rule, mm, name="ff_style")(y, emb, deterministic)
+
+
+class Denoiser(nn.Module):
+    """Returns the predicted noise `(b, n_dct, dim)` of noisy coefficients `x` at timesteps `t` given the condition `cond`.
+
+    `keep (b,)` is 1 where the condition is used and 0 where it is dropped (classifier-free training):
+    the condition's embedding is added to the timestep's only where `keep` is 1.
+    """
+
+    dim: int
+    n_dct: int
+    latent: int = 128
+    ff: int = 256
+    num_layers: int = 4
+    num_heads: int = 4
+    dropout: float = 0.2
+    dense_init: str = "torch"
+    precision: str = "float32"
+
+    @nn.compact
+    def __call__(self, x: Float[ArrayLike, "b n d"], t: Int[ArrayLike, " b"], cond: Float[ArrayLike, "b n d"],
+                 keep: Float[ArrayLike, " b"], deterministic: bool = True) -> Float[Array, "b n d"]:
+        b, n, _ = x.shape
+        c, mm, rule = self.latent, self.precision, self.dense_init
+        emb = Dense(c, rule=rule, precision=mm, name="time_in")(timestep_embedding(t, c))
+        emb = Dense(c, rule=rule, precision=mm, name="time_out")(nn.silu(emb))
+        emb = emb + jnp.asarray(keep, jnp.float32)[:, None] * Dense(c, rule=rule, precision=mm, name="cond_embed")(
+            jnp.reshape(cond, (b, -1)))
+        seq = self.param("sequence_embedding", nn.initializers.normal(1.0), (self.n_dct, c), jnp.float32)
+        h = Dense(c, rule=rule, precision=mm, name="joint_embed")(x) + seq[None, :n]
+        skips = []
+        for i in range(self.num_layers):
+            block = Block(c, self.ff, self.num_heads, self.dropout, rule, mm, name=f"block_{i}")
+            if i < self.num_layers // 2:
+                skips.append(h)
+                h = block(h, emb, deterministic)
+            else:
+                h = block(h, emb, deterministic) + skips.pop()
+        return ZeroDense(self.dim, mm, name="out")(h)
+
+
+def denoiser(c: DiffusionConfig, dim: int, precision: str = "float32") -> Denoiser:
+    """Returns the denoiser a `DiffusionConfig` describes for `dim`-dimensional frames."""
+    return Denoiser(dim=dim, n_dct=c.n_dct, latent=c.latent, ff=c.ff, num_layers=c.num_layers, num_heads=c.num_heads,
+                    dropout=c.dropout, dense_init=c.dense_init, precision=precision)
+
+
+# ---------------------------------------------------------------------------------------------
+# The forward process and its schedule.
+
+
+def cosine_betas(noise_steps: int, s: float = 0.008) -> np.ndarray:
+    """Returns the cosine schedule's betas (Nichol & Dhariwal 2021, Eq. (17)): `abar(t) = cos((t/T + s)/(1 + s) pi/2)^2`."""
+    t = np.linspace(0.0, 1.0, noise_steps + 1)
+    abar = np.cos((t + s) / (1 + s) * np.pi / 2) ** 2
+    abar = abar / abar[0]
+    return np.clip(1.0 - abar[1:] / abar[:-1], 0.0, 0.999)
+
+
+def linear_betas(noise_steps: int, start: float = 1e-4, end: float = 0.02) -> np.ndarray:
+    """Returns DDPM's linear betas from `start` to `end`, scaled by 1000 / T as the release does."""
+    scale = 1000.0 / noise_steps
+    return np.linspace(scale * start, scale * end, noise_steps)
+
+
+def schedule(kind: str, noise_steps: int) -> Float[Array, " T"]:
+    """Returns `abar_t = prod_{s <= t} (1 - beta_s)` for t = 0..T-1 (float32) of the schedule `kind`."""
+    if kind not in SCHEDULES:
+        raise ValueError(f"schedule must be one of {SCHEDULES}, got {kind!r}")
+    betas = cosine_betas(noise_steps) if kind == "cosine" else linear_betas(noise_steps)
+    return jnp.asarray(np.cumprod(1.0 - betas), jnp.float32)
+
+
+def ddim_timesteps(noise_steps: int, sampling_steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """Returns `(t, t_prev)`, the DDIM sub-sequence `1, 1 + T/S, ...` and each step's previous level (0 first)."""
+    if noise_steps % sampling_steps or sampling_steps >= noise_steps:
+        raise ValueError(f"sampling_steps ({sampling_steps}) must divide noise_steps ({noise_steps}) and be smaller")
+    t = np.arange(0, noise_steps, noise_steps // sampling_steps) + 1
+    return t, np.concatenate([[0], t[:-1]])
+
+
+def pad_last(x: Float[ArrayLike, "... t_his d"], t_total: int) -> Float[Array, "... t_total d"]:
+    """Returns the observed frames followed by the last observed pose repeated up to `t_total` frames (HumanMAC's padding)."""
+    x = jnp.asarray(x)
+    last = jnp.broadcast_to(x[..., -1:, :], (*x.shape[:-2], t_total - x.shape[-2], x.shape[-1]))
+    return jnp.concatenate([x, last], axis=-2)
+
+
+def condition(x: Float[ArrayLike, "b t_his d"], t_total: int, n_dct: int) -> Float[Array, "b n d"]:
+    """Returns the condition: the first `n_dct` DCT coefficients of the padded observation (`pad_last`)."""
+    return dct(pad_last(x, t_total), n_dct)
+
+
+def q_sample(abar: Float[Array, " T"], x0, t: Int[ArrayLike, " b"], eps):
+    """Returns `x_t = sqrt(abar_t) x0 + sqrt(1 - abar_t) eps` (DDPM Eq. (4)), `t (b,)` indexing the batch."""
+    a = abar[t][:, None, None]
+    return jnp.sqrt(a) * x0 + jnp.sqrt(1.0 - a) * eps
+
+
+def diffusion_loss(model: Denoiser, params, batch: Float[ArrayLike, "b t d"], key: jax.Array, *, t_his: int,
+                   abar: Float[Array, " T"], cond_drop: float):
+    """Returns `(loss, metrics)`: DDPM's noise-prediction loss `mean ||eps - eps_theta(x_t, t, c)||^2` on whole windows.
+
+    `t` is uniform on 1..T-1 (the release's range), and the condition is dropped for each window
+    with probability `cond_drop`.
+    """
+    batch = jnp.asarray(batch)
+    b, t_total = batch.shape[:2]
+    x0 = dct(batch, model.n_dct)
+    cond = condition(batch[:, :t_his], t_total, model.n_dct)
+    k_t, k_eps, k_drop, k_dropout = jax.random.split(key, 4)
+    t = jax.random.randint(k_t, (b,), 1, abar.shape[0])
+    eps = jax.random.normal(k_eps, x0.shape)
+    keep = (jax.random.uniform(k_drop, (b,)) >= cond_drop).astype(jnp.float32)
+    pred = model.apply(params, q_sample(abar, x0, t, eps), t, cond, keep, deterministic=False, rngs={"dropout": k_dropout})
+    mse = jnp.mean((pred - eps) ** 2)
+    return mse, {"mse": mse, "cond_kept": jnp.mean(keep)}
+
+
+# ---------------------------------------------------------------------------------------------
+# Sampling: DDIM with DCT completion.
+
+
+def completion_mask(t_total: int, dim: int, frames: int) -> Float[Array, "t_total d"]:
+    """Returns the completion mask: 1 on the first `frames` frames (every coordinate), 0 elsewhere."""
+    if not 0 <= frames <= t_total:
+        raise ValueError(f"completion_mask: frames must be in [0, {t_total}], got {frames}")
+    return jnp.broadcast_to((jnp.arange(t_total) < frames)[:, None], (t_total, dim)).astype(jnp.float32)
+
+
+def ddim_sample(denoise, x_T: Float[Array, "b n d"], cond: Float[Array, "b n d"], key: jax.Array, *,
+                abar: Float[Array, " T"], t_seq, t_prev, t_total: int, mask: Float[Array, "t d"] | None):
+    """Returns the DCT coefficients `x_0 (b, n, d)` that DDIM (sigma = 0) reaches from `x_T`, in one `lax.scan`.
+
+    `denoise(x, t)` is the noise prediction at the scalar timestep `t`. Each step (DDIM Eq. (12)):
+    `x0_hat = (x_t - sqrt(1 - abar_t) eps) / sqrt(abar_t)`, `x_prev = sqrt(abar_prev) x0_hat + sqrt(1 - abar_prev) eps`.
+    With `mask`, DCT completion follows (HumanMAC Eq. (6)-(7)): the condition noised to `abar_prev`
+    with fresh noise (`normal(fold_in(key, i))` at DDIM index `i`), both signals back in time, the
+    masked frames from the condition and the rest from the sample, then back to DCT.
+    """
+    n = x_T.shape[-2]
+
+    def step(x, inp):
+        t, tp, i = inp
+        a, ap = abar[t], abar[tp]
+        eps = denoise(x, t)
+        x0 = (x - jnp.sqrt(1.0 - a) * eps) / jnp.sqrt(a)
+        x = jnp.sqrt(ap) * x0 + jnp.sqrt(1.0 - ap) * eps
+        if mask is not None:
+            known = jnp.sqrt(ap) * cond + jnp.sqrt(1.0 - ap) * jax.random.normal(jax.random.fold_in(key, i), x.shape)
+            x = dct(mask * idct(known, t_total) + (1.0 - mask) * idct(x, t_total), n)
+        return x, None
+
+    idx = jnp.arange(len(t_seq))[::-1]
+    xs = (jnp.asarray(t_seq)[::-1], jnp.asarray(t_prev)[::-1], idx)
+    x, _ = jax.lax.scan(step, x_T, xs)
+    return x
+
+
+def sample(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.Array, k: int, *, t_pred: int,
+           abar: Float[Array, " T"], sampling_steps: int, complete_frames: int | None = None) -> Float[Array, "b k t_pred d"]:
+    """Returns K futures per window: DDIM with DCT completion (`ddim_sample`), vmapped over the K samples.
+
+    Sample k draws its start `x_T` from `split(key_k)[0]` and its completion noise from `split(key_k)[1]`,
+    `key_k = split(key, k)[k]`. `complete_frames` (None: the observed `t_his` frames; 0: no completion).
+    """
+    x = jnp.asarray(x)
+    b, t_his, d = x.shape
+    t_total = t_his + t_pred
+    cond = condition(x, t_total, model.n_dct)
+    frames = t_his if complete_frames is None else complete_frames
+    mask = completion_mask(t_total, d, frames) if frames else None
+    t_seq, t_prev = ddim_timesteps(abar.shape[0], sampling_steps)
+    ones = jnp.ones((b,), jnp.float32)
+
+    def denoise(xt, t):
+        return model.apply(params, xt, jnp.full((b,), t), cond, ones)
+
+    def one(key_k):
+        k0, k1 = jax.random.split(key_k)
+        x0 = ddim_sample(denoise, jax.random.normal(k0, cond.shape), cond, k1, abar=abar, t_seq=t_seq, t_prev=t_prev,
+                         t_total=t_total, mask=mask)
+        return idct(x0, t_total)[:, t_his:]
+
+    return jnp.swapaxes(jax.vmap(one)(jax.random.split(key, k)), 0, 1)
+
+
+# ---------------------------------------------------------------------------------------------
+# EMA of the weights, as an optax transformation.
+
+
+class EmaState(NamedTuple):
+    count: jax.Array
+
+
+def ema_weights(decay: float, start: int) -> optax.GradientTransformation:
+    """Returns the transformation that keeps `params["ema"]` an exponential moving average of `params["model"]`.
+
+    For parameters `{"model": ..., "ema": ...}` (the loss reads only "model", so the updates of "ema"
+    from earlier transformations are zero), the update of "ema" becomes the one that sets it to
+    `decay * ema + (1 - decay) * model_new`, `model_new` the weights after this step's update; for the
+    first `start` steps it sets it to `model_new` (the release's EMA: copy, then average). Chain it last.
+    """
+
+    def init(params):
+        del params
+        return EmaState(count=jnp.zeros((), jnp.int32))
+
+    def update(updates, state, params=None):
+        if params is None:
+            raise ValueError("ema_weights needs the parameters (optax: tx.update(grads, state, params))")
+        model = optax.apply_updates(params["model"], updates["model"])
+        d = jnp.where(state.count < start, 0.0, decay)
+        ema = jax.tree.map(lambda e, m: d * e + (1.0 - d) * m, params["ema"], model)
+        return {**updates, "ema": jax.tree.map(jnp.subtract, ema, params["ema"])}, EmaState(count=state.count + 1)
+
+    return optax.GradientTransformation(init, update)
