@@ -395,8 +395,9 @@ class _LateLoopTracebacksDropped:
     When one array of a checkpoint fails to read, orbax's restore raises and closes its event loop,
     but tensorstore finishes the other reads it started and hands each result to that closed loop
     (`call_soon_threadsafe`); each prints a traceback from tensorstore's threads, 5-16 for a DLow run,
-    before and after the error's one line. Nobody waits for those reads. A traceback is held from its
-    header to its exception line, and dropped only when it is that one; everything else passes.
+    before and after the error's one line, several threads at once. Nobody waits for those reads. Each
+    thread's traceback is held from its header to its exception line, and dropped only when it is
+    that one; everything else passes.
     """
 
     _HEADER = "Traceback (most recent call last):"
@@ -404,24 +405,27 @@ class _LateLoopTracebacksDropped:
     def __init__(self, stream):
         import threading
 
-        self.stream, self._lock, self._held, self._owner = stream, threading.Lock(), None, None
+        self.stream, self._lock, self._held = stream, threading.Lock(), {}  # thread id -> its traceback so far
 
     def write(self, s: str) -> int:
         import threading
 
         me = threading.get_ident()
         with self._lock:
-            if self._held is None or self._owner != me:
-                if not s.startswith(self._HEADER) or self._held is not None:
+            held = self._held.get(me)
+            if held is None:
+                if not s.startswith(self._HEADER):
                     return self.stream.write(s)
-                self._held, self._owner = "", me
-            self._held += s
-            lines = self._held.splitlines()
-            last = lines[-1] if self._held.endswith("\n") else ""
+                held = ""
+            held += s
+            lines = held.splitlines()
+            last = lines[-1] if held.endswith("\n") else ""
             if last and not last.startswith((" ", self._HEADER)):  # the exception line: the traceback is whole
-                held, self._held = self._held, None
+                del self._held[me]
                 if not (last == "RuntimeError: Event loop is closed" and "call_soon_threadsafe" in held):
                     self.stream.write(held)
+            else:
+                self._held[me] = held
             return len(s)
 
     def flush(self) -> None:

@@ -532,6 +532,27 @@ def test_stderr_filter_drops_only_late_event_loop_tracebacks():
             f.write(piece)
     assert out.getvalue() == "before\nprogress\r" + other + "after\n"
 
+    # Two threads' late tracebacks interleaved line by line (as tensorstore's threads print them): both dropped.
+    import threading
+
+    out = io.StringIO()
+    f = _LateLoopTracebacksDropped(out)
+    lines = late.splitlines(keepends=True)
+    step = [threading.Barrier(2) for _ in lines]
+
+    def print_late():
+        for line, barrier in zip(lines, step):
+            barrier.wait()
+            f.write(line)
+
+    threads = [threading.Thread(target=print_late) for _ in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    f.write("jaxmotion: error: the message\n")
+    assert out.getvalue() == "jaxmotion: error: the message\n"
+
 
 @pytest.mark.slow
 def test_a_joint_that_cannot_rotate_is_one_line_and_nothing_is_written(run_copy, tmp_path):
