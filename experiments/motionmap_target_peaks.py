@@ -86,8 +86,6 @@ def main(argv=None) -> int:
     ap.add_argument("--json", type=Path, default=None, help="write the figures here")
     args = ap.parse_args(argv)
 
-    from openTSNE import TSNE
-
     from jaxmotion import experiment as ex
     from jaxmotion.methods import motionmap as mmethod
     from jaxmotion.models import motionmap as mm
@@ -122,18 +120,17 @@ def main(argv=None) -> int:
     new_pool = mmethod.Pool(prep, dataclasses.replace(c, pool_stride=args.stride))
     t0 = time.time()
     codes = np.concatenate([np.asarray(enc(jnp.asarray(new_pool.y[s : s + 512]))) for s in range(0, len(new_pool.y), 512)])
-    emb = TSNE(perplexity=c.tsne_perplexity_fit, initialization="pca", metric="cosine", n_jobs=2, random_state=cfg.seed,
-               negative_gradient_method="fft", verbose=False).fit(codes.astype(np.float64))
-    pts = np.asarray(emb, np.float32)
+    pts = mm.tsne_embed(codes, fit_points=None, perplexity_fit=c.tsne_perplexity_fit, seed=cfg.seed)
     origin, scale = mm.grid_scaling(pts, c.hm_size)
     new_cells = np.asarray(mm.to_cells(jnp.asarray(pts), jnp.asarray(origin), scale, c.hm_size))
     tsne_s = time.time() - t0
     print(f"new map: {len(codes)} training windows (stride {args.stride}), t-SNE on all of them in {tsne_s:.0f} s", flush=True)
     maps["new"] = (new_pool, new_cells, True, {"pool_stride": args.stride, "tsne_fit_points": int(len(codes)), "tsne_s": round(tsne_s, 1)})
 
+    member_sets = {}
     for name, (pool, cells, dedupe, info) in maps.items():
         sets = mm.motionmap_mm_sets(test_desc, thr, parents, reference_desc=pool.x[:, -c.descriptor_frames :])
-        idx, mask = np.asarray(sets.idx), np.asarray(sets.mask)
+        idx, mask = member_sets[name] = np.asarray(sets.idx), np.asarray(sets.mask)
         members = mask.sum(1)
         distinct_cells = np.asarray([len(np.unique(cells[idx[w, mask[w]]], axis=0)) for w in range(len(idx))])
         counts = peak_counts(cells, idx, mask, c, dedupe=dedupe, rng=rng)
@@ -147,8 +144,7 @@ def main(argv=None) -> int:
 
     # Distinct futures in the data (the new pool's members, onto each window's skeleton), on evenly spaced windows.
     pool = maps["new"][0]
-    sets = mm.motionmap_mm_sets(test_desc, thr, parents, reference_desc=pool.x[:, -c.descriptor_frames :])
-    idx, mask = np.asarray(sets.idx), np.asarray(sets.mask)
+    idx, mask = member_sets["new"]
     transfer = jax.jit(lambda src, tgt: mm.motion_transfer(src, tgt[None], parents))
     pick = np.linspace(0, len(idx) - 1, min(args.cluster_windows, len(idx))).round().astype(int)
     distinct = {t: [] for t in args.cluster_ade}

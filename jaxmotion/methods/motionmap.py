@@ -110,7 +110,7 @@ class Pool:
             s = idx[w, mask[w]]
             if cells is not None:
                 s = rng.permutation(s)
-                _, first = np.unique(cells[s, 0] * (cells[:, 1].max() + 1) + cells[s, 1], return_index=True)
+                _, first = np.unique(cells[s], axis=0, return_index=True)
                 s = s[np.sort(first)]
             if len(s) > cap:
                 s = rng.choice(s, cap, replace=False)
