@@ -25,6 +25,7 @@ import numpy as np
 from jaxmotion import experiment, metrics
 from jaxmotion.config import load_config
 from jaxmotion.methods.diffusion import sampler
+from jaxmotion.eval import evaluate_windows
 
 
 def main(argv=None):
@@ -67,7 +68,7 @@ def point(cfg, ds, params, full, sub, steps: int, k: int, repeats: int) -> dict:
         jax.block_until_ready(fn(x, jax.random.key(i + 1)))
         times.append(time.perf_counter() - t0)
     chunks = experiment.predict_chunks(fn, sub.x, jax.random.key(cfg.seed + 7), cfg.eval_batch)
-    m = metrics.evaluate_windows(chunks, sub.y, sub.x[:, -1], thr=ds.mm_threshold,
+    m = evaluate_windows(chunks, sub.y, sub.x[:, -1], thr=ds.mm_threshold,
                                  reference_last_poses=full.x[:, -1], reference_futures=full.y)
     row = {"steps": steps, "K": k, "batch_s": statistics.median(times), "batch_times_s": times,
            **{key: float(m[key]) for key in metrics.METRIC_NAMES}}

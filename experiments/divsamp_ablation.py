@@ -27,6 +27,7 @@ from jaxmotion.config import load_config
 from jaxmotion.methods import divsamp as divsamp_method
 from jaxmotion.methods import get_method
 from jaxmotion.train import runner
+from jaxmotion.eval import evaluate_windows
 
 VARIANTS = {
     "gumbel + hinge": {"coefficients": "gumbel", "diversity": "hinge"},
@@ -67,7 +68,7 @@ def main(argv=None):
         train_s = time.perf_counter() - t0
         fn = divsamp_method.make_predictors(d, ds, cvae_variables, sampler, args.k)["divsamp"]
         chunks = experiment.predict_chunks(fn, sub.x, jax.random.key(cfg.seed + 7), cfg.eval_batch)
-        m = metrics.evaluate_windows(
+        m = evaluate_windows(
             chunks, sub.y, sub.x[:, -1], thr=ds.mm_threshold,
             reference_last_poses=full.x[:, -1], reference_futures=full.y,
         )

@@ -22,6 +22,7 @@ import jax
 from jaxmotion import experiment, metrics
 from jaxmotion.compile_time import CompileTimer
 from jaxmotion.config import load_config
+from jaxmotion.eval import evaluate_windows
 
 
 def main(argv=None):
@@ -67,7 +68,7 @@ def sweep_point(cfg, ds, params, full: experiment.Prepared, sub: experiment.Prep
     t0 = time.perf_counter()
     with CompileTimer() as compiling:
         chunks = experiment.predict_chunks(fn, sub.x, jax.random.key(cfg.seed + 7), batch)
-        m = metrics.evaluate_windows(
+        m = evaluate_windows(
             chunks, sub.y, sub.x[:, -1], thr=ds.mm_threshold,
             reference_last_poses=full.x[:, -1], reference_futures=full.y,
         )

@@ -3,7 +3,7 @@
     python experiments/plot_curves.py RUN_DIR [RUN_DIR ...] [--out-dir DIR] [--tail 0.2]
 
 A run trained with `Config.curve_every > 0` has learning-curve lines (`"curve": true`) in each
-stage's `log.jsonl` (`jaxmotion.experiment.learning_curve`). Per run this writes `curves.png`
+stage's `log.jsonl` (`jaxmotion.eval.learning_curve`). Per run this writes `curves.png`
 (into the run folder, or `--out-dir/<run name>_curves.png`): one row per stage, one column per
 metric, one line per predictor, and prints, per stage and predictor, each metric's first, best and
 last value and its relative change over the last `--tail` of the stage's steps: the "flattened?"

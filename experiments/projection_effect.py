@@ -21,6 +21,7 @@ import numpy as np
 
 from jaxmotion import experiment, metrics
 from jaxmotion.predictor import load, run_config
+from jaxmotion.eval import evaluate_windows
 
 
 def main() -> None:
@@ -56,7 +57,7 @@ def main() -> None:
                         else:
                             yield np.asarray(project(jnp.asarray(c), last))
 
-                m = metrics.evaluate_windows(chunks(), prep.y, sets)
+                m = evaluate_windows(chunks(), prep.y, sets)
                 out[mode] = {key: round(float(m[key]), 5) for key in ("APD", "ADE", "FDE", "MMADE", "MMFDE", "ADE-m", "FDE-m")}
             err = np.concatenate(length_error)  # (n, bones)
             rec = {

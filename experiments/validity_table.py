@@ -117,7 +117,9 @@ def main(argv: list[str] | None = None) -> int:
         except ValueError as e:
             raise SystemExit(str(e)) from None
         if id(prep) not in actions:  # the classifier and the true futures, once per dataset
-            actions[id(prep)] = action = experiment.action_evaluator(cfg, prep) if args.action_metrics else None
+            from jaxmotion.eval.loop import action_evaluator
+
+            actions[id(prep)] = action = action_evaluator(cfg, prep) if args.action_metrics else None
             gt = [prep.y[s : s + cfg.eval_batch, None] for s in range(0, len(prep.y), cfg.eval_batch)]
             rows.append({"run": ds.name, "sampler": "ground truth", "K": 1, "n_windows": len(prep.windows),
                          **score(v, gt, action)})

@@ -56,10 +56,10 @@ class Config:
     # Training windows: "windows" (each valid window equally likely) or "sequences" (DLow's release:
     # a sequence uniformly, then a start). Every measured table used "windows".
     train_sampler: str = "windows"
-    # None (protocol), "divsamp", "comusion" (`metrics.reduce_mm`) or "gsps" (GSPS's release: a test
-    # window whose MM set is itself alone is skipped in every metric, `experiment.skip_single_future`).
+    # None (protocol), or the averaging of a published code base: "divsamp", "comusion" or "gsps"
+    # (`jaxmotion.eval.protocol.DEVIATIONS`, each described there).
     mm_deviation: str | None = None
-    # Where MMADE / MMFDE's multimodal ground truth comes from (PROTOCOL sec. 2; `experiment.reference_sets`):
+    # Where MMADE / MMFDE's multimodal ground truth comes from (PROTOCOL sec. 2; `jaxmotion.eval.references`):
     # None: the method's own (`Method.reference_futures`: "test" for every method but MotionMap,
     # "train" for it); "test": the protocol (last observed pose within the dataset's threshold, test
     # windows); "train": the same over the training windows (every t_his frames); "motionmap-test" /

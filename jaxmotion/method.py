@@ -18,7 +18,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import jax
 import numpy as np
@@ -28,8 +28,18 @@ import optax
 Predictor = Callable[[jax.Array, jax.Array], jax.Array]
 # `(params, frozen, batch, key) -> (loss, metrics)`; with BatchNorm `(loss, (metrics, new_batch_stats))`.
 LossFn = Callable[[Any, Any, Any, jax.Array], tuple]
-# `(ds, pred (n, K, t_pred, D), gt (n, t_pred, D)) -> {name: (n,) per-window array}`.
-ExtraMetrics = Callable[[Any, np.ndarray, np.ndarray], dict[str, np.ndarray]]
+
+
+class ExtraMetrics(NamedTuple):
+    """A method's own metrics for one trained run (`Method.extra_metrics`).
+
+    `per_window(pred (n, K, t_pred, D), gt (n, t_pred, D)) -> {name: (n,) array}`; evaluation
+    averages each over windows (NaN skipped). `record`: added to every record's `config` (what the
+    evaluation used that the config does not hold, e.g. GSPS's measured angle bounds).
+    """
+
+    per_window: Callable[[np.ndarray, np.ndarray], dict[str, np.ndarray]]
+    record: dict = {}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -76,12 +86,9 @@ class Method:
       whose `method_config` is checked, `prep` an `experiment.Prepared`: dataset, train sampler, test windows).
     - `predictors(cfg, ds, params, k) -> {name: Predictor}`: jitted samplers of K futures, including
       the baselines the method is compared against; `params` is `{stage name: trained parameters}`.
-    - `extra_metrics(ds, pred, gt) -> {name: (n,) per-window array}`: optional, added to evaluation.
-    - `trained_metrics(cfg, ds, params) -> extra_metrics`: optional; for metrics that need the trained
-      stages (GSPS's angle bounds and pose prior), an `extra_metrics` function bound to them, which
-      evaluation uses instead of `extra_metrics`.
-    - `record_fields(cfg, ds, params) -> dict`: optional; added to every evaluation record's `config`
-      (what the evaluation used that the config does not hold, e.g. GSPS's measured angle bounds).
+    - `extra_metrics(cfg, ds, params) -> ExtraMetrics`: optional; the method's own per-window
+      metrics for the trained stages `params` (MOJO's realism, GSPS's validity under its own angle
+      bounds and pose prior, MotionMap's distinct futures), and what their record should say.
     - `part_control(cfg, ds, params, x, key, k, fix) -> (b, K, t_pred, D)`: optional body-part control
       (`jaxmotion sample --fix-part`): K futures in which the parts named in `fix` are held and the
       others vary; it raises a ValueError naming the valid parts. None: the method has no part control.
@@ -97,18 +104,16 @@ class Method:
       K of equal terms are that term; MM errors, mode recall and the `extra_metrics`, which are means
       over the K samples, unchanged; FID's feature moments counted K times), at 1/K of the cost.
 
-    During training, learning curves call `predictors` with the stages trained so far (the current
-    one included, later ones absent): return the predictors those allow, or raise `KeyError` for
-    none (that stage then has no curve).
+    `predictors` returns the predictors the stages in `params` allow: during training, learning
+    curves call it with the stages trained so far (the current one included, later ones absent),
+    and a stage whose only predictors are in `curve_skip` has no curve.
     """
 
     name: str
     config_type: type
     stages: Callable[[Any, Any], list[Stage]]
     predictors: Callable[[Any, Any, dict, int], dict[str, Predictor]]
-    extra_metrics: ExtraMetrics | None = None
-    trained_metrics: Callable[[Any, Any, dict], ExtraMetrics] | None = None
-    record_fields: Callable[[Any, Any, dict], dict] | None = None
+    extra_metrics: Callable[[Any, Any, dict], ExtraMetrics] | None = None
     part_control: Callable[..., jax.Array] | None = None
     pictures: Callable[[Any, Any, dict, Path, int], list[Path]] | None = None
     reference_futures: str = "test"
@@ -120,11 +125,6 @@ class Method:
     def __post_init__(self):
         if self.reference_futures not in ("test", "train"):
             raise ValueError(f"Method {self.name!r}: reference_futures must be 'test' or 'train', got {self.reference_futures!r}")
-
-    def evaluation_hooks(self, cfg, ds, params: dict) -> tuple[ExtraMetrics | None, dict]:
-        """Returns `(extra metrics function or None, fields for every record's config)` for trained `params`."""
-        fn = self.trained_metrics(cfg, ds, params) if self.trained_metrics is not None else self.extra_metrics
-        return fn, (self.record_fields(cfg, ds, params) if self.record_fields is not None else {})
 
     def settings(self, cfg) -> Any:
         """Returns `cfg.method_config` checked against `config_type` (the default `config_type()` when it is None)."""

@@ -35,8 +35,6 @@ from jaxtyping import Array, ArrayLike, Bool, Float, Int, jaxtyped
 
 from jaxmotion.formats.atomic import savez_atomic
 
-MMDeviation = Literal[None, "divsamp", "comusion"]
-
 METRIC_NAMES = ("APD", "ADE", "FDE", "MMADE", "MMFDE", "ADE-m", "FDE-m")
 
 
@@ -583,36 +581,6 @@ def mmfde(
     return mm_errors(pred, futures, idx, mask, batch_size=batch_size)[1]
 
 
-@_checked
-def reduce_mm(
-    per_window: Float[ArrayLike, " n"],
-    n_members: Int[ArrayLike, " n"],
-    n_others: Int[ArrayLike, " n"],
-    mm_deviation: MMDeviation = None,
-) -> tuple[float, int]:
-    """Returns `(average over windows, number of windows averaged)` of an MM metric (PROTOCOL sec. 2).
-
-    `per_window` must have been computed on the sets the deviation prescribes, `n_members` is the
-    size of those sets and `n_others` the number of members other than the window itself.
-    - `None` (protocol): mean over windows with a non-empty set (all of them when MM(i) includes i).
-    - `"divsamp"`: windows with no neighbour (`n_others == 0`) are skipped, but the sum is divided
-      by the full window count (DivSamp's published code; `evaluate_windows` builds its sets).
-    - `"comusion"`: windows whose only member is themselves are dropped (CoMusion's published code).
-    """
-    v = np.asarray(per_window, np.float64)
-    n_members, n_others = np.asarray(n_members), np.asarray(n_others)
-    if mm_deviation is None:
-        keep = n_members > 0
-        return float(v[keep].mean()) if keep.any() else float("nan"), int(keep.sum())
-    if mm_deviation == "divsamp":
-        keep = n_others > 0
-        return float(v[keep].sum() / v.shape[0]), int(keep.sum())
-    if mm_deviation == "comusion":
-        keep = n_others > 0
-        return float(v[keep].mean()) if keep.any() else float("nan"), int(keep.sum())
-    raise AssertionError(f"unreachable: `mm_deviation` is checked by its annotation, got {mm_deviation!r}")
-
-
 # --------------------------------------------------------------------------------------------
 # Streaming evaluation.
 
@@ -633,22 +601,94 @@ def _chunk_metrics(pred, gt, futures, idx, mask, targets=None, parents=None):
     }
 
 
-def _pred_chunks(pred, chunk_size: int) -> Iterator[np.ndarray | jax.Array]:
-    # Chunks are at most as long as the first one (and `chunk_size`), so that pieces arriving in
-    # a fixed size (a sampler's batches) pass through unsplit and only the last one is padded.
-    pieces = [pred] if hasattr(pred, "shape") else pred
-    size = None
-    for piece in pieces:
-        if not hasattr(piece, "shape"):
-            piece = np.asarray(piece)
+def _pieces(pred) -> Iterator[np.ndarray | jax.Array]:
+    # `pred` as a sequence of (n_c, K, t_pred, D) pieces: the whole array is one piece.
+    for piece in [pred] if hasattr(pred, "shape") else pred:
+        piece = piece if hasattr(piece, "shape") else np.asarray(piece)
         if piece.ndim != 4:
             raise ValueError(
                 f"evaluate_windows: `pred` (or a chunk of it) must be (n, K, t_pred, D), got {tuple(piece.shape)}"
             )
-        if size is None and piece.shape[0]:
-            size = min(chunk_size, piece.shape[0])
-        for s in range(0, piece.shape[0], size or 1):
-            yield piece[s : s + size]
+        yield piece
+
+
+class WindowMetricStream:
+    """Every per-window metric of PROTOCOL sec. 2 over predictions that arrive in pieces, in window order.
+
+    `add(piece)` takes the next `(n_c, K, t_pred, D)` predictions; `result()` returns the `(N,)`
+    numpy arrays keyed as `METRIC_NAMES` once every window has arrived. Windows are evaluated in
+    chunks of the first piece's size (at most `chunk_size`), the last one padded, so the jitted
+    kernel compiles once per (K, chunk size) and no time goes to padding when the pieces come in
+    a fixed size. See `window_metrics` for the arguments.
+    """
+
+    def __init__(self, gt, futures, idx, mask, *, chunk_size: int = 32, transfer_poses=None, transfer_parents=None):
+        fn = "window_metrics"
+        _check_finite(fn, "gt", gt)
+        if (transfer_poses is None) != (transfer_parents is None):
+            raise ValueError(f"{fn}: give both `transfer_poses` and `transfer_parents`, or neither")
+        if transfer_parents is not None:
+            transfer_parents = tuple(int(q) for q in transfer_parents)
+            frame_parents(transfer_parents)
+            transfer_poses = np.asarray(transfer_poses, np.float32)
+            _check_finite(fn, "transfer_poses", transfer_poses)
+            _check_same(fn, "number of windows", "transfer_poses", transfer_poses.shape[0], "gt", np.shape(gt)[0])
+        _check_finite(fn, "futures", futures)
+        _check_idx(fn, idx, mask, futures.shape[0])
+        self.gt = np.asarray(gt, np.float32)
+        self.futures = jnp.asarray(futures, jnp.float32)
+        self.idx, self.mask = np.asarray(idx, np.int32), np.asarray(mask, bool)
+        self.transfer_poses, self.transfer_parents = transfer_poses, transfer_parents
+        self.chunk_size = chunk_size
+        n = self.gt.shape[0]
+        self.out = {k: np.empty((n,), np.float32) for k in METRIC_NAMES}
+        self.start, self.k_seen, self.size = 0, None, None
+
+    def add(self, piece) -> None:
+        """Scores the next `(n_c, K, t_pred, D)` predictions (windows `[seen, seen + n_c)`)."""
+        for chunk in self._chunks(next(_pieces(piece))):
+            self._chunk(chunk)
+
+    def _chunks(self, piece):
+        # Chunks are at most as long as the first piece (and `chunk_size`), so that pieces arriving
+        # in a fixed size (a sampler's batches) pass through unsplit and only the last one is padded.
+        if self.size is None and piece.shape[0]:
+            self.size = min(self.chunk_size, piece.shape[0])
+        for s in range(0, piece.shape[0], self.size or 1):
+            yield piece[s : s + self.size]
+
+    def _chunk(self, chunk) -> None:
+        fn, gt, n = "window_metrics", self.gt, self.gt.shape[0]
+        c, start = chunk.shape[0], self.start
+        if start + c > n:
+            raise ValueError(f"{fn}: `pred` has more windows than `gt` ({n})")
+        if self.k_seen is None:
+            self.k_seen = chunk.shape[1]
+        _check_same(fn, "K", "pred chunk", chunk.shape[1], "first pred chunk", self.k_seen)
+        _check_same(fn, "t_pred", "pred", chunk.shape[2], "gt", gt.shape[1])
+        _check_same(fn, "D", "pred", chunk.shape[3], "gt", gt.shape[2])
+        if not np.all(np.isfinite(np.asarray(chunk))):
+            raise ValueError(f"{fn}: `pred` contains NaN or inf in windows [{start}, {start + c})")
+        sl = slice(start, start + c)
+        pad = self.size - c
+        args = [np.asarray(chunk, np.float32), gt[sl], self.idx[sl], self.mask[sl]]
+        if self.transfer_parents is not None:
+            args.append(self.transfer_poses[sl])
+        if pad:
+            args = [np.concatenate([a, np.zeros((pad,) + a.shape[1:], a.dtype)]) for a in args]
+        p, g, i, m = args[:4]
+        targets = jnp.asarray(args[4]) if self.transfer_parents is not None else None
+        res = _chunk_metrics(jnp.asarray(p), jnp.asarray(g), self.futures, jnp.asarray(i), jnp.asarray(m), targets,
+                             self.transfer_parents)
+        for key in METRIC_NAMES:
+            self.out[key][sl] = np.asarray(res[key])[:c]
+        self.start += c
+
+    def result(self) -> dict[str, np.ndarray]:
+        """Returns the `(N,)` per-window metrics; every window must have arrived."""
+        if self.start != self.gt.shape[0]:
+            raise ValueError(f"window_metrics: `pred` has {self.start} windows but `gt` has {self.gt.shape[0]}")
+        return self.out
 
 
 @_checked
@@ -667,150 +707,18 @@ def window_metrics(
 
     `pred` is either the whole `(N, K, t_pred, D)` array or an iterable of `(n_c, K, t_pred, D)`
     chunks whose concatenation along axis 0 is that array (e.g. a generator that samples the model
-    chunk by chunk), so the full prediction tensor never needs to exist. Windows are evaluated in
-    chunks of the first chunk's size (at most `chunk_size`), the last one padded, so the jitted
-    kernel compiles once per (K, chunk size) and no time goes to padding when the pieces come in
-    a fixed size.
+    chunk by chunk), so the full prediction tensor never needs to exist (`WindowMetricStream`).
+    MM futures are `futures[idx]` where `mask` holds.
 
     With `transfer_parents` (the skeleton's parents, root first) and `transfer_poses` (each window's
     last observed pose), every MM future is motion-transferred onto the window's skeleton before
     MMADE / MMFDE (MotionMap's evaluation, PROTOCOL sec. 2 option; `motion_transfer`).
     """
-    fn = "window_metrics"
-    _check_finite(fn, "gt", gt)
-    if (transfer_poses is None) != (transfer_parents is None):
-        raise ValueError(f"{fn}: give both `transfer_poses` and `transfer_parents`, or neither")
-    if transfer_parents is not None:
-        transfer_parents = tuple(int(q) for q in transfer_parents)
-        frame_parents(transfer_parents)
-        transfer_poses = np.asarray(transfer_poses, np.float32)
-        _check_finite(fn, "transfer_poses", transfer_poses)
-        _check_same(fn, "number of windows", "transfer_poses", transfer_poses.shape[0], "gt", np.shape(gt)[0])
-    _check_finite(fn, "futures", futures)
-    _check_idx(fn, idx, mask, futures.shape[0])
-    gt = np.asarray(gt, np.float32)
-    futures = jnp.asarray(futures, jnp.float32)
-    idx, mask = np.asarray(idx, np.int32), np.asarray(mask, bool)
-    n = gt.shape[0]
-    out = {k: np.empty((n,), np.float32) for k in METRIC_NAMES}
-    start, k_seen, size = 0, None, None
-    for chunk in _pred_chunks(pred, chunk_size):
-        c = chunk.shape[0]
-        size = size or c
-        if start + c > n:
-            raise ValueError(f"{fn}: `pred` has more windows than `gt` ({n})")
-        if k_seen is None:
-            k_seen = chunk.shape[1]
-        _check_same(fn, "K", "pred chunk", chunk.shape[1], "first pred chunk", k_seen)
-        _check_same(fn, "t_pred", "pred", chunk.shape[2], "gt", gt.shape[1])
-        _check_same(fn, "D", "pred", chunk.shape[3], "gt", gt.shape[2])
-        if not np.all(np.isfinite(np.asarray(chunk))):
-            raise ValueError(f"{fn}: `pred` contains NaN or inf in windows [{start}, {start + c})")
-        sl = slice(start, start + c)
-        pad = size - c
-        args = [np.asarray(chunk, np.float32), gt[sl], idx[sl], mask[sl]]
-        if transfer_parents is not None:
-            args.append(transfer_poses[sl])
-        if pad:
-            args = [np.concatenate([a, np.zeros((pad,) + a.shape[1:], a.dtype)]) for a in args]
-        p, g, i, m = args[:4]
-        targets = jnp.asarray(args[4]) if transfer_parents is not None else None
-        res = _chunk_metrics(jnp.asarray(p), jnp.asarray(g), futures, jnp.asarray(i), jnp.asarray(m), targets,
-                             transfer_parents)
-        for key in METRIC_NAMES:
-            out[key][sl] = np.asarray(res[key])[:c]
-        start += c
-    if start != n:
-        raise ValueError(f"{fn}: `pred` has {start} windows but `gt` has {n}")
-    return out
-
-
-@_checked
-def evaluate_windows(
-    pred: Float[ArrayLike, "n k t d"] | Iterable[Float[ArrayLike, "c k t d"]],
-    gt: Float[ArrayLike, "n t d"],
-    mm: Float[ArrayLike, "n d"] | MMSets,
-    *,
-    thr: float | None = None,
-    reference_last_poses: Float[ArrayLike, "r d"] | None = None,
-    reference_futures: Float[ArrayLike, "r t d"] | None = None,
-    mm_deviation: MMDeviation = None,
-    chunk_size: int = 32,
-    transfer_poses: Float[ArrayLike, "n d"] | None = None,
-    transfer_parents: tuple[int, ...] | None = None,
-) -> dict[str, float]:
-    """Returns APD, ADE, FDE, MMADE, MMFDE, ADE-m, FDE-m averaged over windows, plus MM statistics (PROTOCOL sec. 2).
-
-    `mm` is either the `(N, D)` flattened last observed poses (then `thr` is required and the MM
-    sets are built with `multimodal_gt`) or precomputed `MMSets`. MM futures are the test ground
-    truth `gt` unless `reference_futures` is given (with `reference_last_poses` when `mm` is poses),
-    e.g. training windows for MotionMap comparisons. `pred` may be an iterable of window chunks;
-    see `window_metrics` (also for `transfer_poses` / `transfer_parents`: MotionMap's motion-transferred
-    MM futures, with `mm` then the `MMSets` of `motionmap_mm_sets`).
-
-    `mm_deviation` reproduces published code (see `reduce_mm`). `"comusion"` drops windows whose
-    only member is themselves from MMADE/MMFDE. `"divsamp"` is DivSamp's release (`mm` must be the
-    last poses): a window's set is itself plus the windows within `thr` whose last pose differs from
-    its own (exact duplicates are dropped), windows with no such neighbour are skipped in APD, ADE,
-    FDE, MMADE and MMFDE, and those sums are still divided by the number of windows.
-
-    Extra keys: `n_windows`; `MM_mean`, `MM_min`, `MM_max` (MM set sizes as built, i.e. including
-    the window itself in test-window mode); `MM_only_self_frac` (fraction of windows with no MM
-    future other than their own); `MM_n_averaged` (windows entering the MMADE/MMFDE average).
-    """
-    fn = "evaluate_windows"
-    gt = np.asarray(gt, np.float32)
-    if mm_deviation == "divsamp" and (isinstance(mm, MMSets) or reference_futures is not None):
-        raise ValueError(f"{fn}: mm_deviation='divsamp' needs `mm` as the test windows' last poses (it drops duplicates)")
-    if isinstance(mm, MMSets):
-        if reference_last_poses is not None:
-            raise ValueError(f"{fn}: pass `reference_last_poses` only with last poses, not with `MMSets`")
-        sets = mm
-    else:
-        if thr is None:
-            raise ValueError(f"{fn}: `thr` is required when `mm` is the last observed poses")
-        if reference_last_poses is not None and reference_futures is None:
-            raise ValueError(f"{fn}: `reference_last_poses` needs `reference_futures`")
-        sets = multimodal_gt(mm, thr, reference_last_poses=reference_last_poses)
-    # `MMSets` fields are not checked by the annotation of `mm`: check them against `gt` here.
-    mask = np.asarray(sets.mask, bool)
-    if mask.ndim != 2:
-        raise ValueError(f"{fn}: `mm.mask` must be (n, m), got shape {mask.shape}")
-    _check_same(fn, "number of windows", "mm", mask.shape[0], "gt", gt.shape[0])
-    _check_same(fn, "shape", "mm.idx", np.shape(sets.idx), "mm.mask", mask.shape)
-    if reference_futures is None:
-        futures = gt
-        window = np.arange(gt.shape[0])[:, None]
-        is_self = np.asarray(sets.idx) == window
-    else:
-        futures = reference_futures
-        is_self = np.zeros(mask.shape, bool)
-    n_members = mask.sum(axis=1)
-    n_others = (mask & ~is_self).sum(axis=1)
-    used = mask
-    if mm_deviation == "divsamp":
-        poses = np.asarray(mm, np.float64)
-        dup = np.all(poses[np.asarray(sets.idx)] == poses[:, None], axis=-1) & ~is_self
-        used = mask & ~dup
-        n_others = (used & ~is_self).sum(axis=1)
-
-    per = window_metrics(pred, gt, futures, sets.idx, used, chunk_size=chunk_size, transfer_poses=transfer_poses,
-                         transfer_parents=transfer_parents)
-    out = {k: float(np.mean(per[k], dtype=np.float64)) for k in METRIC_NAMES if not k.startswith("MM")}
-    if mm_deviation == "divsamp":
-        keep = n_others > 0
-        out.update({k: float(np.sum(per[k][keep], dtype=np.float64) / gt.shape[0]) for k in ("APD", "ADE", "FDE")})
-    out["MMADE"], n_avg = reduce_mm(per["MMADE"], used.sum(axis=1), n_others, mm_deviation)
-    out["MMFDE"], _ = reduce_mm(per["MMFDE"], used.sum(axis=1), n_others, mm_deviation)
-    out.update(
-        n_windows=float(gt.shape[0]),
-        MM_mean=float(n_members.mean()),
-        MM_min=float(n_members.min()),
-        MM_max=float(n_members.max()),
-        MM_only_self_frac=float(np.mean(n_others == 0)),
-        MM_n_averaged=float(n_avg),
-    )
-    return out
+    stream = WindowMetricStream(gt, futures, idx, mask, chunk_size=chunk_size, transfer_poses=transfer_poses,
+                                transfer_parents=transfer_parents)
+    for piece in _pieces(pred):
+        stream.add(piece)
+    return stream.result()
 
 
 # --------------------------------------------------------------------------------------------

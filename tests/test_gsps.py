@@ -355,8 +355,8 @@ def test_tiny_run_trains_samples_any_k_and_fixes_a_body_part_from_the_command_li
     np.testing.assert_allclose(params["angle_bounds"]["bounds"], gsps.measure_angle_bounds(
         method.bounds_frames(prep.sampler.frames, c.angle_bounds_frames), ROLES, c.angle_percentile, c.angle_margin), atol=1e-6)
     # Evaluation's hooks: metrics under the run's own bounds and prior, and the bounds for metrics.json.
-    extra, fields = method.METHOD.evaluation_hooks(cfg, ds, params)
-    m = extra(ds, np.asarray(out), prep.y[:2])
+    extra, fields = method.METHOD.extra_metrics(cfg, ds, params)
+    m = extra(np.asarray(out), prep.y[:2])
     assert {"angle_violation", "prior_nll", "prior_nll_z", "BDF"} <= set(m) and all(v.shape == (2,) for v in m.values())
     assert fields["angle_bounds"]["bounds"]["Leg2HipPlane_l"] == [
         round(float(b), 4) for b in params["angle_bounds"]["bounds"][gsps.ANGLE_NAMES.index("Leg2HipPlane_l")]]

@@ -50,7 +50,7 @@ def test_curves_logged_per_stage_and_plotted(tmp_path, capsys):
 
 def test_a_motionmap_run_has_no_curve_point_before_its_heatmap_stage():
     # MotionMap predicts only once its heatmap and codebook exist: during the autoencoder stage the
-    # curve has no point (it once raised KeyError inside the traced predictor and stopped the run).
+    # curve has no point: `predictors` offers only the (curve-skipped) zero-velocity baseline then.
     import jax
     import jax.numpy as jnp
 
@@ -64,4 +64,9 @@ def test_a_motionmap_run_has_no_curve_point_before_its_heatmap_stage():
     c = cfg.method_config
     ae = mm.ae_model(c, ds.dim, ds.t_his, ds.t_pred)
     p = ae.init(jax.random.key(0), jnp.zeros((1, ds.t_his, ds.dim)), jnp.zeros((1, ds.t_pred, ds.dim)))
-    assert ex.learning_curve(cfg, prep)({"autoencoder": p}) is None
+    from jaxmotion.eval import learning_curve
+    from jaxmotion.methods import get_method
+
+    method = get_method("motionmap")
+    assert set(method.predictors(cfg, ds, {"autoencoder": p}, 5)) == {"zero_velocity"}
+    assert learning_curve(cfg, method, prep)({"autoencoder": p}) is None

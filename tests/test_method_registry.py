@@ -12,6 +12,7 @@ from jaxmotion.cli import main
 from jaxmotion.config import Config, load_config
 from jaxmotion.method import Method, Stage, register
 from jaxmotion.train.runner import CheckpointMismatch
+from jaxmotion.eval import evaluate_windows
 
 # A whole method in one config file: a learned constant velocity plus a learned spread of K samples.
 TOY = '''
@@ -117,9 +118,12 @@ def test_reference_futures_from_training_windows():
     # Training on the test sequences themselves: every test window is also a training window.
     prep = experiment.prepare(dataclasses.replace(ds, train=ds.test), 20)
     stub = dict(config_type=dict, stages=lambda c, p: [], predictors=lambda c, d, p, k: {})
-    (idx, mask), none = experiment.reference_sets(Method(name="t", **stub), prep)
+    from jaxmotion.eval import mm_source, reference
+
+    cfg = Config()
+    (idx, mask), none = reference(mm_source(cfg, Method(name="t", **stub))).build(prep)[1:3]
     assert none is None and int(np.asarray(idx).max()) < len(prep.windows)
-    (idx, mask), futures = experiment.reference_sets(Method(name="t", reference_futures="train", **stub), prep)
+    (idx, mask), futures = reference(mm_source(cfg, Method(name="t", reference_futures="train", **stub))).build(prep)[1:3]
     idx, mask = np.asarray(idx), np.asarray(mask)
     assert futures.shape[1:] == (ds.t_pred, ds.dim) and len(futures) > len(prep.windows)
     for i in range(len(prep.windows)):
@@ -161,6 +165,8 @@ def test_learning_curve_takes_its_mm_ground_truth_from_the_config():
     import dataclasses
 
     from jaxmotion import metrics
+    from jaxmotion.eval import learning_curve, reference
+    from jaxmotion.methods import get_method
     from jaxmotion.methods.common import zero_velocity
 
     register(Method(name="curve_stub", config_type=dict, stages=lambda c, p: [],
@@ -174,11 +180,11 @@ def test_learning_curve_takes_its_mm_ground_truth_from_the_config():
     pred = np.broadcast_to(x[:, None, -1:], (len(sub), 2, ds.t_pred, ds.dim))
     got = {}
     for source in (None, "train", "motionmap-train"):
-        point = experiment.learning_curve(dataclasses.replace(base, mm_ground_truth=source), prep)({})["predictors"]["zv"]
-        r = experiment.mm_reference(prep, source or "test")
+        point = learning_curve(dataclasses.replace(base, mm_ground_truth=source), get_method("curve_stub"), prep)({})["predictors"]["zv"]
+        r = reference(source or "test").build(prep)
         sets = metrics.MMSets(np.asarray(r.sets.idx)[sub], np.asarray(r.sets.mask)[sub])
         transfer = {} if r.transfer_parents is None else dict(transfer_poses=r.transfer_poses[sub], transfer_parents=r.transfer_parents)
-        want = metrics.evaluate_windows(iter([pred]), prep.y[sub], sets,
+        want = evaluate_windows(iter([pred]), prep.y[sub], sets,
                                         reference_futures=prep.y if r.futures is None else r.futures, **transfer)  # fmt: skip
         assert np.isfinite(point["MMADE"]) and point["MMADE"] == pytest.approx(float(want["MMADE"]), abs=1e-6), source
         got[source] = point["MMADE"]

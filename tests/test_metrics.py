@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from jaxtyping import TypeCheckError
 
 from jaxmotion import metrics as M
+from jaxmotion.eval import evaluate_windows
 
 # Every new shape recompiles, so examples are few and shapes come from a small range.
 PROPS = settings(max_examples=10, deadline=None)
@@ -75,7 +76,7 @@ def test_hand_computed_per_window():
     [(None, 5 / 3, 5 / 3, 3), ("divsamp", 5 / 3, 5 / 3, 2), ("comusion", 2.5, 2.5, 2)],
 )
 def test_hand_computed_aggregates(deviation, mmade, mmfde, n_avg):
-    out = M.evaluate_windows(PRED, GT, LAST, thr=THR, mm_deviation=deviation, chunk_size=2)
+    out = evaluate_windows(PRED, GT, LAST, thr=THR, mm_deviation=deviation, chunk_size=2)
     expected = {"APD": 25 / 3, "ADE": 2.5 / 3, "FDE": 5 / 3, "ADE-m": 8.75 / 3, "FDE-m": 5.0}
     if deviation == "divsamp":
         expected["APD"] = 20 / 3  # window 2, with no neighbour, is skipped and the sum divided by 3
@@ -101,7 +102,7 @@ def test_reference_windows():
     ref_fut = np.stack([GT[0], GT[2] + 40])
     idx, mask = M.multimodal_gt(LAST, THR, reference_last_poses=ref_last)
     assert np.asarray(mask).sum(1).tolist() == [1, 1, 0]
-    out = M.evaluate_windows(
+    out = evaluate_windows(
         PRED, GT, LAST, thr=THR, reference_last_poses=ref_last, reference_futures=ref_fut
     )
     assert out["MMADE"] == pytest.approx(2.5, abs=1e-6)
@@ -188,11 +189,11 @@ def test_mmade_equals_ade_when_only_self(shape, seed):
 @given(dims, st.integers(0, 2**31 - 1), st.integers(1, 3), st.sampled_from([None, "divsamp", "comusion"]))
 def test_chunked_equals_unchunked(shape, seed, chunk, deviation):
     _, pred, gt, last = _random(seed, *shape)
-    whole = M.evaluate_windows(pred, gt, last, thr=1.5, mm_deviation=deviation, chunk_size=64)
+    whole = evaluate_windows(pred, gt, last, thr=1.5, mm_deviation=deviation, chunk_size=64)
     # Uneven incoming pieces, re-chunked and padded inside.
     cuts = list(range(0, shape[0], 2)) + [shape[0]]
     pieces = (pred[a:b] for a, b in zip(cuts[:-1], cuts[1:]))
-    streamed = M.evaluate_windows(pieces, gt, last, thr=1.5, mm_deviation=deviation, chunk_size=chunk)
+    streamed = evaluate_windows(pieces, gt, last, thr=1.5, mm_deviation=deviation, chunk_size=chunk)
     assert whole.keys() == streamed.keys()
     for key in whole:
         np.testing.assert_allclose(streamed[key], whole[key], rtol=1e-6, atol=1e-6, err_msg=key)
@@ -248,7 +249,7 @@ def test_matches_loop_reference(deviation):
     last[-1] += 100.0
     gt = rng.normal(size=(n, t, d)).astype(np.float32)
     pred = (gt[:, None] + rng.normal(scale=0.5, size=(n, k, t, d))).astype(np.float32)
-    got = M.evaluate_windows(pred, gt, last, thr=1.0, mm_deviation=deviation, chunk_size=5)
+    got = evaluate_windows(pred, gt, last, thr=1.0, mm_deviation=deviation, chunk_size=5)
     want = _reference(pred, gt, last, 1.0, deviation)
     assert got["MM_max"] > 2 and got["MM_only_self_frac"] > 0
     for key, value in want.items():
@@ -315,13 +316,13 @@ def test_validation_names_the_argument():
     with pytest.raises(ValueError, match="`pred` contains NaN"):
         M.ade(bad, GT)
     with pytest.raises(ValueError, match="`pred` contains NaN"):
-        M.evaluate_windows(bad, GT, LAST, thr=THR)
+        evaluate_windows(bad, GT, LAST, thr=THR)
     with pytest.raises(ValueError, match="`last_poses` contains NaN"):
         M.multimodal_gt(np.full((2, 2), np.nan), THR)
     with pytest.raises(ValueError, match="`thr` is required"):
-        M.evaluate_windows(PRED, GT, LAST)
+        evaluate_windows(PRED, GT, LAST)
     with pytest.raises(ValueError, match="`pred` has 2 windows"):
-        M.evaluate_windows(iter([PRED[:1], PRED[1:2]]), GT, LAST, thr=THR)
+        evaluate_windows(iter([PRED[:1], PRED[1:2]]), GT, LAST, thr=THR)
     with pytest.raises(ValueError, match="`idx` has entries outside"):
         M.mm_errors(PRED, GT, np.full((3, 1), 3), np.ones((3, 1), bool))
     # Shapes and literals: the annotations, checked in production too (`jaxtyped` + beartype on the
@@ -333,11 +334,11 @@ def test_validation_names_the_argument():
     with pytest.raises(TypeCheckError, match=r"(?s)parameter 'reference_last_poses'.*\nd=2\n"):
         M.multimodal_gt(LAST, THR, reference_last_poses=np.zeros((4, 3)))
     with pytest.raises(TypeCheckError, match=r"(?s)parameter 'gt'.*\nn=2\n"):
-        M.evaluate_windows(PRED[:2], GT, LAST, thr=THR)
+        evaluate_windows(PRED[:2], GT, LAST, thr=THR)
     with pytest.raises(TypeCheckError, match="parameter 'mask'"):
         M.mm_errors(PRED, GT, np.zeros((3, 1), int), np.ones((3, 2), bool))
     with pytest.raises(TypeCheckError, match="parameter 'mm_deviation'"):
-        M.evaluate_windows(PRED, GT, LAST, thr=THR, mm_deviation="dlow")
+        evaluate_windows(PRED, GT, LAST, thr=THR, mm_deviation="dlow")
     with pytest.raises(TypeCheckError, match="parameter 'pred'"):
         M.apd(np.zeros((3, 2, 2), int))
 
@@ -347,8 +348,8 @@ def test_divsamp_deviation_drops_duplicate_last_poses_and_differs_from_the_proto
     last = np.array([[0.0, 0.0], [0.1, 0.0], [5.0, 0.0], [0.0, 0.0]], np.float32)
     gt = np.array([[[0, 0]], [[1, 0]], [[9, 9]], [[0, 3]]], np.float32)  # one future frame each
     pred = np.array([[[[0, 0]]], [[[1, 0]]], [[[9, 9]]], [[[0, 3]]]], np.float32)  # K = 1, exact
-    proto = M.evaluate_windows(pred, gt, last, thr=0.5)
-    rel = M.evaluate_windows(pred, gt, last, thr=0.5, mm_deviation="divsamp")
+    proto = evaluate_windows(pred, gt, last, thr=0.5)
+    rel = evaluate_windows(pred, gt, last, thr=0.5, mm_deviation="divsamp")
     d = lambda i, j: float(np.linalg.norm(gt[i, 0] - gt[j, 0]))  # noqa: E731
     # Protocol: MM(0) = MM(1) = MM(3) = {0, 1, 3}, MM(2) = {2}; averaged over 4 windows.
     want = (np.mean([d(0, 0), d(0, 1), d(0, 3)]) + np.mean([d(1, 0), d(1, 1), d(1, 3)]) + 0 + np.mean([d(3, 0), d(3, 1), d(3, 3)])) / 4
@@ -358,4 +359,4 @@ def test_divsamp_deviation_drops_duplicate_last_poses_and_differs_from_the_proto
     assert rel["MMADE"] == pytest.approx(want, rel=1e-6) and rel["MM_n_averaged"] == 3
     assert rel["MMADE"] != pytest.approx(proto["MMADE"], rel=1e-3)
     with pytest.raises(ValueError, match="divsamp.*last poses"):
-        M.evaluate_windows(pred, gt, M.multimodal_gt(last, 0.5), mm_deviation="divsamp")
+        evaluate_windows(pred, gt, M.multimodal_gt(last, 0.5), mm_deviation="divsamp")

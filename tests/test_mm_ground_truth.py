@@ -17,6 +17,7 @@ import pytest
 from jaxmotion import experiment, metrics
 from jaxmotion.config import Config, validate
 from jaxmotion.method import Method
+from jaxmotion.eval import reference
 from jaxmotion.methods.common import zero_velocity
 
 PARENTS = (-1, 0, 1, 2, 0, 4, 5)  # a root, two chains of three joints
@@ -84,18 +85,18 @@ def prep():
 
 def test_every_source_builds_sets_of_its_candidates(prep):
     n = len(prep.windows)
-    test = experiment.mm_reference(prep, "test")
+    test = reference("test").build(prep)
     assert test.futures is None and test.transfer_parents is None
-    train = experiment.mm_reference(prep, "train")
+    train = reference("train").build(prep)
     assert train.futures.shape[1:] == prep.y.shape[1:] and int(np.asarray(train.sets.idx).max()) < len(train.futures)
-    mt = experiment.mm_reference(prep, "motionmap-test")
+    mt = reference("motionmap-test").build(prep)
     idx, mask = np.asarray(mt.sets.idx), np.asarray(mt.sets.mask)
     assert mt.futures is None and mt.transfer_parents == tuple(prep.dataset.skeleton.parents)
     assert all(i in idx[i][mask[i]] for i in range(n))  # a window is in its own MotionMap set
-    mtr = experiment.mm_reference(prep, "motionmap-train")
+    mtr = reference("motionmap-train").build(prep)
     assert mtr.futures.shape == train.futures.shape and mtr.transfer_poses.shape == (n, prep.dataset.dim)
     with pytest.raises(ValueError, match="source must be one of"):
-        experiment.mm_reference(prep, "motionmap")
+        reference("motionmap")
 
 
 def test_evaluate_records_the_source_and_uses_transferred_futures(prep, tmp_path, stub_method):
@@ -103,7 +104,7 @@ def test_evaluate_records_the_source_and_uses_transferred_futures(prep, tmp_path
                  action_metrics=False)
     rec = experiment.evaluate(cfg, prep, {}, tmp_path)[0]
     assert rec["mm_source"] == "motionmap-test" and json.loads((tmp_path / "metrics.json").read_text())[0]["mm_source"] == "motionmap-test"
-    ref = experiment.mm_reference(prep, "motionmap-test")
+    ref = reference("motionmap-test").build(prep)
     pred = np.repeat(prep.x[:, -1:][:, None], 2, axis=1).repeat(prep.y.shape[1], axis=2)  # zero velocity, K = 2
     per = metrics.window_metrics(pred, prep.y, prep.y, ref.sets.idx, ref.sets.mask, transfer_poses=ref.transfer_poses,
                                  transfer_parents=ref.transfer_parents)

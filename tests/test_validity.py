@@ -12,6 +12,7 @@ from jaxmotion import validity
 from jaxmotion.data.synthetic import SKELETON, make_synthetic
 from jaxmotion.data.windows import sequence_frames
 from jaxmotion.models import gsps
+from jaxmotion.eval import evaluate_windows
 
 NAMES, PARENTS = tuple(SKELETON.names), tuple(SKELETON.parents)
 ELBOW = gsps.ANGLE_NAMES.index("ForeArm2ArmPlane_l")
@@ -115,16 +116,20 @@ def test_gsps_single_future_skip_is_the_protocol_on_windows_with_a_neighbour():
     sets = metrics.multimodal_gt(prep.x[:, -1], ds.mm_threshold)
     alone = np.asarray(sets.mask).sum(1) == 1
     assert alone.any() and not alone.all()  # the test below needs both kinds of window
-    kept = experiment.skip_single_future(prep, get_method("gsps"))
+    from jaxmotion.config import Config
+    from jaxmotion.eval import loop, protocol
+
+    kept = loop.select_windows(prep, protocol.multi_future_windows(prep.x[:, -1], ds.mm_threshold))
     np.testing.assert_array_equal(kept.keep, prep.keep[~alone])
     np.testing.assert_array_equal(kept.windows, prep.windows[~alone])
     # The release's loop: every metric of the windows with a neighbour, averaged over those windows.
     pred = np.asarray(jax.random.normal(jax.random.key(0), (len(prep.windows), 3) + prep.y.shape[1:]), np.float32) * 0.1
     pred += prep.y[:, None]
     per = metrics.window_metrics(pred, prep.y, prep.y, sets.idx, sets.mask)
-    got = metrics.evaluate_windows(pred[~alone], kept.y, kept.x[:, -1], thr=ds.mm_threshold)
+    got = evaluate_windows(pred[~alone], kept.y, kept.x[:, -1], thr=ds.mm_threshold)
     for k in ("APD", "ADE", "FDE", "MMADE", "MMFDE"):
         np.testing.assert_allclose(got[k], per[k][~alone].mean(), rtol=1e-5)
     train_ref = dataclasses.replace(get_method("gsps"), reference_futures="train")
+    cfg = experiment.resolve(Config(method="gsps", mm_deviation="gsps", action_metrics=False))
     with pytest.raises(ValueError, match="test-window reference futures"):
-        experiment.skip_single_future(prep, train_ref)
+        loop.evaluators(cfg, train_ref, prep, {})

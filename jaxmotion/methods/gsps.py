@@ -8,8 +8,8 @@ training poses, checkpointed so the generator and evaluation use the same number
 (any K, i.i.d. noise per part). `sample_part_control` fixes some parts' noise and varies the rest
 (`jaxmotion sample --fix-part`). Evaluation adds, per window, the fraction of predicted frames
 outside the run's own angle bounds, the pose-prior NLL under its own prior and the bone
-deformation (`trained_metrics`, `jaxmotion.validity`), and writes the bounds into every record's
-config (`record_fields`).
+deformation (`extra_metrics`, `jaxmotion.validity`), and writes the bounds into every record's
+config (`ExtraMetrics.record`).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import numpy as np
 import optax
 
 from jaxmotion import validity
-from jaxmotion.method import Method, Stage
+from jaxmotion.method import ExtraMetrics, Method, Stage
 from jaxmotion.methods.common import zero_velocity
 from jaxmotion.models import gsps
 from jaxmotion.models.gsps import GSPSConfig
@@ -146,22 +146,22 @@ def sample_part_control(cfg, ds, params: dict, x, key: jax.Array, k: int, fix: t
 def predictors(cfg, ds, params: dict, k: int) -> dict:
     """Returns jitted `(x, key) -> (b, K, t_pred, D)` samplers: zero-velocity and GSPS."""
     c = settings(cfg)
-    v = params["generator"]
-    return {
-        "zero_velocity": zero_velocity(ds.t_pred, k),
-        "gsps": jax.jit(lambda x, key: sample_gsps(c, ds, v, x, key, k, precision=cfg.precision)),
-    }
+    out = {"zero_velocity": zero_velocity(ds.t_pred, k)}
+    if "generator" in params:
+        v = params["generator"]
+        out["gsps"] = jax.jit(lambda x, key: sample_gsps(c, ds, v, x, key, k, precision=cfg.precision))
+    return out
 
 
-def trained_metrics(cfg, ds, params: dict):
+def extra_metrics(cfg, ds, params: dict) -> ExtraMetrics:
     """Returns GSPS's extra metrics for a trained run: per window `angle_violation` under the run's own
-    `angle_bounds` stage, `prior_nll` / `prior_nll_z` under its `prior` stage, and `BDF` (`jaxmotion.validity`)."""
+    `angle_bounds` stage, `prior_nll` / `prior_nll_z` under its `prior` stage, and `BDF` (`jaxmotion.validity`);
+    the record says which bounds the evaluation used and how they were measured."""
     v = validity.from_gsps_run(cfg, ds, params)
-    return lambda _ds, pred, _gt: validity.window_validity(v, pred)
+    return ExtraMetrics(lambda pred, _gt: validity.window_validity(v, pred), _bounds_record(cfg, params))
 
 
-def record_fields(cfg, ds, params: dict) -> dict:
-    """Returns `{"angle_bounds": ...}` for metrics.json's config record: the bounds the evaluation used and how they were measured."""
+def _bounds_record(cfg, params: dict) -> dict:
     c = settings(cfg)
     return {"angle_bounds": {
         "measured": f"percentiles {c.angle_percentile} / {100 - c.angle_percentile} of the cosines over up to "
@@ -176,8 +176,7 @@ METHOD = Method(
     config_type=GSPSConfig,
     stages=stages,
     predictors=predictors,
-    trained_metrics=trained_metrics,
-    record_fields=record_fields,
+    extra_metrics=extra_metrics,
     part_control=sample_part_control,
     description="GSPS (Mao et al., ICCV 2021): flow pose prior, angle limits, body parts generated in sequence by GCNs",
 )

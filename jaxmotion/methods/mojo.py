@@ -17,7 +17,7 @@ import jax.numpy as jnp
 
 from jaxmotion import realism
 from jaxmotion.body.projection import body_fit_fn, init_from_observed, recursive_projection
-from jaxmotion.method import Method, Stage
+from jaxmotion.method import ExtraMetrics, Method, Stage
 from jaxmotion.methods.common import adam, window_batches, zero_velocity
 from jaxmotion.models import mojo
 from jaxmotion.models.mojo import MojoConfig
@@ -111,10 +111,10 @@ def projected_sampler(model: mojo.MojoCVAE, cvae_params, q: mojo.MojoQ, q_params
     return jax.jit(sample)
 
 
-def extra_metrics(ds, pred, gt) -> dict:
+def extra_metrics(cfg, ds, params: dict) -> ExtraMetrics:
     """Returns MOJO's realism metrics per window (`jaxmotion.realism.window_realism`): FSE always; BDF, body
     deformation and foot skating where the dataset names the joints or markers they need."""
-    return realism.window_realism(pred, gt, ds)
+    return ExtraMetrics(lambda pred, gt: realism.window_realism(pred, gt, ds))
 
 
 METHOD = Method(

@@ -31,7 +31,7 @@ import numpy as np
 import optax
 
 from jaxmotion.data.windows import test_windows
-from jaxmotion.method import Method, Stage
+from jaxmotion.method import ExtraMetrics, Method, Stage
 from jaxmotion.methods.common import zero_velocity
 from jaxmotion.models import motionmap as mm
 from jaxmotion.models.motionmap import MotionMapConfig
@@ -257,8 +257,6 @@ def modes_fn(cfg, ds, params: dict):
     c, ae, ae_params = _decoder(cfg, ds, params)
     hm = mm.heatmap_model(c)
     parents = tuple(ds.skeleton.parents)
-    # Looked up now, not inside the traced function: a run whose heatmap stage is not trained yet raises
-    # KeyError here, which the learning curves take as "cannot predict yet" (experiment.learning_curve).
     hm_params, codebook = params["heatmap"], params["codebook"]
     return jax.jit(
         lambda x: mm.predict_modes(
@@ -335,20 +333,21 @@ def near_mode_fn(cfg, ds, params: dict, *, k: int, radius: float):
 
 
 def predictors(cfg, ds, params: dict, k: int) -> dict:
-    """Returns jitted `(x, key) -> (b, K, t_pred, D)` samplers: zero-velocity and MotionMap's top-K modes."""
+    """Returns jitted `(x, key) -> (b, K, t_pred, D)` samplers: zero-velocity and, once the heatmap is trained,
+    MotionMap's top-K modes."""
+    out = {"zero_velocity": zero_velocity(ds.t_pred, k)}
+    if "heatmap" not in params:
+        return out
     modes = modes_fn(cfg, ds, params)
-    out = {
-        "zero_velocity": zero_velocity(ds.t_pred, k),
-        "motionmap": jax.jit(lambda x, key: mm.select_k(modes(x), k)),
-    }
+    out["motionmap"] = jax.jit(lambda x, key: mm.select_k(modes(x), k))
     if settings(cfg).k_protocol == "release":  # the same futures at every K: all peaks and zero-velocity
         out["motionmap_all_peaks"] = jax.jit(lambda x, key: mm.all_peaks(modes(x), x))
     return out
 
 
-def _distinct(ds, pred, y) -> dict:
+def _distinct(cfg, ds, params: dict) -> ExtraMetrics:
     """`Method.extra_metrics`: the number of different futures among a window's samples (ANP + 1 for `motionmap_all_peaks`)."""
-    return {"distinct_futures": mm.distinct_futures(pred).astype(np.float64)}
+    return ExtraMetrics(lambda pred, gt: {"distinct_futures": mm.distinct_futures(pred).astype(np.float64)})
 
 
 def known_mode_statistics(cfg, prep, params: dict, threshold: float | None = None, batch: int = 64) -> dict:
