@@ -18,6 +18,7 @@ import pkgutil
 import re
 import subprocess
 import sys
+import types
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -92,7 +93,9 @@ def workdir(tmp_path_factory):
 @pytest.mark.parametrize("page", [p for p in PAGES if any(b.lang == "python" for b in blocks(p))], ids=lambda p: p.name)
 def test_python_examples_run(page, workdir, monkeypatch):
     monkeypatch.chdir(workdir)
-    namespace: dict = {"__name__": "__docs__"}
+    module = types.ModuleType("docs_example")  # a real module: dataclasses and pickling look their class's module up
+    monkeypatch.setitem(sys.modules, module.__name__, module)
+    namespace = module.__dict__
     for b in (b for b in blocks(page) if b.lang == "python"):
         out = io.StringIO()
         try:
