@@ -51,7 +51,13 @@ MOJO_TABLE = "mojo_bandai_table.json"  # experiments/mojo_table.py
 SYNTHETIC_B3 = sorted(p.relative_to(EXP).as_posix() for p in (EXP / "synthetic_b3").glob("*_metrics.json"))
 MOTIONMAP_TABLES = "motionmap_tables_bandai_long.md"  # experiments/motionmap_tables.py
 C3D_FITS = ["c3d_squat_fit.json", "c3d_nick_freeform_fit.json"]
-PROJECTION_BENCH = "projection_bench_steps6.json"  # benchmarks/projection.py --max-steps 6
+PROJECTION_BENCH = "projection_bench_steps6.json"
+VALIDITY = "validity_bandai_shared_budget.json"  # experiments/validity_table.py
+DIVSAMP_K_SWEEP = "divsamp_k_sweep_bandai.json"  # experiments/divsamp_k_sweep.py
+DIVSAMP_ABLATION = "divsamp_ablation_bandai.json"  # experiments/divsamp_ablation.py
+DIFFUSION_STEPS = "diffusion_steps_bandai.json"  # experiments/diffusion_steps.py
+MOJO_PROJECTION = "mojo_projection_bandai.json"  # experiments/mojo_projection_table.py
+ON_SKELETON = "projection_bandai.json"  # experiments/projection_effect.py  # benchmarks/projection.py --max-steps 6
 # benchmarks/run.py: three full runs of the same code, back to back.
 SPEED_RUNS = ["cpu_amd_bracket_full_run1.json", "cpu_amd_bracket_full_run2.json", "cpu_amd_bracket_full_run3.json"]
 DIFFUSION_SPEED = "diffusion_cpu.json"
@@ -236,6 +242,68 @@ def _shared_budget_table() -> list[str]:
     return lines
 
 
+def _table(rows: list[dict], cols: list[tuple[str, str]], digits: int = 4) -> list[str]:
+    """Returns a markdown table of `rows` with columns `(header, key)`; floats to `digits` decimals."""
+    def fmt(v, key):
+        if not isinstance(v, float):
+            return "-" if v is None else str(v)
+        return f"{v:.2f}" if key.endswith("_s") else f"{v:.{digits}f}"  # times in seconds to 10 ms
+
+    return ["| " + " | ".join(h for h, _ in cols) + " |", "|" + " --- |" * len(cols),
+            *["| " + " | ".join(fmt(r.get(k), k) for _, k in cols) + " |" for r in rows]]
+
+
+def method_experiments() -> list[str]:
+    """Returns the tables of the experiment scripts' own result files (sweeps, ablations, validity)."""
+    metrics = [(m, m) for m in ("APD", "ADE", "FDE", "MMADE", "MMFDE")]
+    out = []
+    v = json.loads((EXP / VALIDITY).read_text())
+    rows = [dict(r, run=Path(r["run"]).name) for r in v["rows"]]
+    out += ["### Valid bodies and action statistics at the shared budget", "",
+            "BDF: bone-length deformation (m); angle violations: the fraction of frames outside a GSPS run's measured",
+            "joint-angle bounds; prior NLL: that run's flow pose prior (nats per frame); CMD, FID: the project's",
+            "action classifier.", "",
+            *_table(rows, [("run", "run"), ("sampler", "sampler"), ("K", "K"), ("BDF", "BDF"), ("angle violations", "angle_violation"),
+                           ("prior NLL", "prior_nll"), ("CMD", "CMD"), ("FID", "FID")]),
+            "", f"How measured: `python experiments/validity_table.py RUN... --gsps-run {Path(v['gsps_run']).name}` over seed 0's "
+            f"shared-budget runs (`{VALIDITY}`).", ""]
+    d = json.loads((EXP / DIVSAMP_K_SWEEP).read_text())
+    m = d["meta"]
+    out += ["### DivSamp: accuracy and diversity against K (its Fig. 6b)", "",
+            *_table(d["rows"], [("sampler", "method"), ("K", "K"), *metrics, ("s", "wall_s")]),
+            "", f"How measured: `python experiments/divsamp_k_sweep.py --config {m['config']}` on one trained run (seed {m['seed']}), "
+            f"{len(m['windows'])} of the {m['n_test_windows']} test windows, evenly spaced (`{DIVSAMP_K_SWEEP}`). " + (m.get("note", "") + ".").lstrip("."), ""]
+    d = json.loads((EXP / DIVSAMP_ABLATION).read_text())
+    m = d["meta"]
+    out += ["### DivSamp: coefficient sampler and diversity loss (its Table 5, reduced)", "",
+            *_table(d["rows"], [("variant", "variant"), ("K", "K"), *metrics, ("steps", "steps")]),
+            "", f"How measured: `python experiments/divsamp_ablation.py --config {m['config']}`: each variant a fresh sampler "
+            f"on the same trained, frozen CVAE, {len(m['windows'])} of the {m['n_test_windows']} test windows (`{DIVSAMP_ABLATION}`).", ""]
+    recs = json.loads((EXP / MOJO_PROJECTION).read_text())
+    rows = [dict(r["metrics"], method=r["method"], K=r["K"], n=r["n_windows"]) for r in recs]
+    out += ["### MOJO on body markers, with and without recursive projection", "",
+            *_table(rows, [("sampler", "method"), ("K", "K"), ("windows", "n"), ("APD", "APD"), ("ADE", "ADE"), ("FDE", "FDE"),
+                           ("BDF", "BDF"), ("FSE", "FSE"), ("foot skating", "foot_skating")]),
+            "", f"How measured: `python experiments/mojo_projection_table.py --workdir RUN` on the run of "
+            f"`{recs[1]['config']['name']}.py` (seed {recs[1]['seed']}; `{MOJO_PROJECTION}`).", ""]
+    recs = json.loads((EXP / ON_SKELETON).read_text())
+    rows = [{"sampler": r["method"], "output": kind, **r["metrics"][kind]} for r in recs for kind in ("raw", "on_input_skeleton")]
+    out += ["### Futures put on the input's skeleton", "",
+            "What `jaxmotion predict`'s retargeting (each future moved onto the window's observed bone lengths) does to",
+            "the protocol metrics.", "",
+            *_table(rows, [("sampler", "sampler"), ("output", "output"), *metrics]),
+            "", f"How measured: `python experiments/projection_effect.py RUN` on a DLow run of `dlow_bandai.py` "
+            f"(seed {recs[0]['seed']}, all {recs[0]['n_windows']} test windows; `{ON_SKELETON}`).", ""]
+    d = json.loads((EXP / DIFFUSION_STEPS).read_text())
+    m = d["meta"]
+    out += ["### Diffusion: accuracy against DDIM steps", "",
+            *_table(d["rows"], [("DDIM steps", "steps"), ("K", "K"), *metrics, ("s per batch", "batch_s")]),
+            "", f"How measured: `python experiments/diffusion_steps.py --config {m['config']}` on one trained run (seed {m['seed']}), "
+            f"{m['n_windows']} of the {m['n_test_windows']} test windows, batches of {m['batch']} ({m['cpu']}, jax {m['jax_version']}; "
+            f"`{DIFFUSION_STEPS}`).", ""]
+    return out
+
+
 def results_page() -> str:
     long_runs = [(_records(f), None) for f in LONG_RUNS]
     b3 = [(_records(f), None) for f in SYNTHETIC_B3]
@@ -304,6 +372,9 @@ def results_page() -> str:
         "",
         *[f"- {_provenance(f)}" for f in SYNTHETIC_B3],
         "",
+        "## Experiments of single methods",
+        "",
+        *method_experiments(),
         "## Body fitting",
         "",
         "| recording | frames | markers | samples seen | median residual mm | 95th percentile mm | calibration s | fit s |",
