@@ -64,6 +64,7 @@ DIFFUSION_SPEED = "diffusion_cpu.json"
 SCALING = {"dlow": [f"scaling_cpu_dlow_run{i}.json" for i in (1, 2, 3)],
            "divsamp": [f"scaling_cpu_divsamp_run{i}.json" for i in (1, 2, 3)]}
 TIME_TO_QUALITY = "time_to_quality_2026-12-05.json"
+EVAL_SPEED = "eval_speed_2026-12-05.json"
 
 METRICS = ("APD", "ADE", "FDE", "MMADE", "MMFDE", "ADE-m")
 DATA = "../shared/data/bandai-namco-2"
@@ -493,6 +494,24 @@ def benchmarks_page() -> str:
         out += [summary([str(BENCH / f) for f in files]), "",
                 f"How measured: `python benchmarks/scaling.py --method {method} --out benchmarks/results/scaling_cpu_{method}_runN` "
                 f"(N = 1, 2, 3), then `python benchmarks/scaling.py --summary` over them.", ""]
+    ev = _bench(EVAL_SPEED)
+    f32 = ev["by_precision"]["float32"]
+    m = ev["machine"]
+    out += [
+        "## Evaluation speed",
+        "",
+        "A whole Bandai-Namco-2 evaluation of a trained DLow run (every metric of the protocol, CMD and FID",
+        "included), per predictor, and one DivSamp evaluation at K = 1000; seconds.",
+        "",
+        "| predictor | K | windows | total s | of which compile s | of which sampling s |",
+        "| --- | --- | --- | --- | --- | --- |",
+        *[f"| {r['method']} | {r['K']} | {r['n_windows']} | {r['wall_s']:.1f} | {r['compile_s']:.1f} | "
+          + (f"{r['sampling_s']:.1f}" if "sampling_s" in r else "-") + " |" for r in f32["eval"] + f32.get("k_point", [])],
+        "",
+        f"How measured: `{ev['command'].replace(str(Path('/work/shared/data')), '../shared/data').split(' --out ')[0]}` "
+        f"({m['cpu']}, {m['logical_cpus']} logical CPUs; `{EVAL_SPEED}`).",
+        "",
+    ]
     out += [
         "## Time to quality",
         "",
