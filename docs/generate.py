@@ -254,54 +254,64 @@ def _table(rows: list[dict], cols: list[tuple[str, str]], digits: int = 4) -> li
             *["| " + " | ".join(fmt(r.get(k), k) for _, k in cols) + " |" for r in rows]]
 
 
+def _section(title: str, intro: list[str], table: list[str], how: str) -> list[str]:
+    return [f"### {title}", "", *intro, *([""] if intro else []), *table, "", f"How measured: {how}", ""]
+
+
 def method_experiments() -> list[str]:
     """Returns the tables of the experiment scripts' own result files (sweeps, ablations, validity)."""
     metrics = [(m, m) for m in ("APD", "ADE", "FDE", "MMADE", "MMFDE")]
-    out = []
     v = json.loads((EXP / VALIDITY).read_text())
-    rows = [dict(r, run=Path(r["run"]).name) for r in v["rows"]]
-    out += ["### Valid bodies and action statistics at the shared budget", "",
-            "BDF: bone-length deformation (m); angle violations: the fraction of frames outside a GSPS run's measured",
-            "joint-angle bounds; prior NLL: that run's flow pose prior (nats per frame); CMD, FID: the project's",
-            "action classifier.", "",
-            *_table(rows, [("run", "run"), ("sampler", "sampler"), ("K", "K"), ("BDF", "BDF"), ("angle violations", "angle_violation"),
-                           ("prior NLL", "prior_nll"), ("CMD", "CMD"), ("FID", "FID")]),
-            "", f"How measured: `python experiments/validity_table.py RUN... --gsps-run {Path(v['gsps_run']).name}` over seed 0's "
-            f"shared-budget runs (`{VALIDITY}`).", ""]
+    out = _section(
+        "Valid bodies and action statistics at the shared budget",
+        ["BDF: bone-length deformation (m); angle violations: the fraction of frames outside a GSPS run's measured",
+         "joint-angle bounds; prior NLL: that run's flow pose prior (nats per frame); CMD, FID: the project's",
+         "action classifier."],
+        _table([dict(r, run=Path(r["run"]).name) for r in v["rows"]],
+               [("run", "run"), ("sampler", "sampler"), ("K", "K"), ("BDF", "BDF"), ("angle violations", "angle_violation"),
+                ("prior NLL", "prior_nll"), ("CMD", "CMD"), ("FID", "FID")]),
+        f"`python experiments/validity_table.py RUN... --gsps-run {Path(v['gsps_run']).name}` over seed 0's "
+        f"shared-budget runs (`{VALIDITY}`).")
     d = json.loads((EXP / DIVSAMP_K_SWEEP).read_text())
     m = d["meta"]
-    out += ["### DivSamp: accuracy and diversity against K (its Fig. 6b)", "",
-            *_table(d["rows"], [("sampler", "method"), ("K", "K"), *metrics, ("s", "wall_s")]),
-            "", f"How measured: `python experiments/divsamp_k_sweep.py --config {m['config']}` on one trained run (seed {m['seed']}), "
-            f"{len(m['windows'])} of the {m['n_test_windows']} test windows, evenly spaced (`{DIVSAMP_K_SWEEP}`). " + (m.get("note", "") + ".").lstrip("."), ""]
+    out += _section(
+        "DivSamp: accuracy and diversity against K (its Fig. 6b)", [],
+        _table(d["rows"], [("sampler", "method"), ("K", "K"), *metrics, ("s", "wall_s")]),
+        f"`python experiments/divsamp_k_sweep.py --config {m['config']}` on one trained run (seed {m['seed']}), "
+        f"{len(m['windows'])} of the {m['n_test_windows']} test windows, evenly spaced (`{DIVSAMP_K_SWEEP}`). "
+        + (m.get("note", "") + ".").lstrip("."))
     d = json.loads((EXP / DIVSAMP_ABLATION).read_text())
     m = d["meta"]
-    out += ["### DivSamp: coefficient sampler and diversity loss (its Table 5, reduced)", "",
-            *_table(d["rows"], [("variant", "variant"), ("K", "K"), *metrics, ("steps", "steps")]),
-            "", f"How measured: `python experiments/divsamp_ablation.py --config {m['config']}`: each variant a fresh sampler "
-            f"on the same trained, frozen CVAE, {len(m['windows'])} of the {m['n_test_windows']} test windows (`{DIVSAMP_ABLATION}`).", ""]
+    out += _section(
+        "DivSamp: coefficient sampler and diversity loss (its Table 5, reduced)", [],
+        _table(d["rows"], [("variant", "variant"), ("K", "K"), *metrics, ("steps", "steps")]),
+        f"`python experiments/divsamp_ablation.py --config {m['config']}`: each variant a fresh sampler on the same "
+        f"trained, frozen CVAE, {len(m['windows'])} of the {m['n_test_windows']} test windows (`{DIVSAMP_ABLATION}`).")
     recs = json.loads((EXP / MOJO_PROJECTION).read_text())
-    rows = [dict(r["metrics"], method=r["method"], K=r["K"], n=r["n_windows"]) for r in recs]
-    out += ["### MOJO on body markers, with and without recursive projection", "",
-            *_table(rows, [("sampler", "method"), ("K", "K"), ("windows", "n"), ("APD", "APD"), ("ADE", "ADE"), ("FDE", "FDE"),
-                           ("BDF", "BDF"), ("FSE", "FSE"), ("foot skating", "foot_skating")]),
-            "", f"How measured: `python experiments/mojo_projection_table.py --workdir RUN` on the run of "
-            f"`{recs[1]['config']['name']}.py` (seed {recs[1]['seed']}; `{MOJO_PROJECTION}`).", ""]
+    out += _section(
+        "MOJO on body markers, with and without recursive projection", [],
+        _table([dict(r["metrics"], method=r["method"], K=r["K"], n=r["n_windows"]) for r in recs],
+               [("sampler", "method"), ("K", "K"), ("windows", "n"), ("APD", "APD"), ("ADE", "ADE"), ("FDE", "FDE"),
+                ("BDF", "BDF"), ("FSE", "FSE"), ("foot skating", "foot_skating")]),
+        f"`python experiments/mojo_projection_table.py --workdir RUN` on the run of "
+        f"`{recs[1]['config']['name']}.py` (seed {recs[1]['seed']}; `{MOJO_PROJECTION}`).")
     recs = json.loads((EXP / ON_SKELETON).read_text())
-    rows = [{"sampler": r["method"], "output": kind, **r["metrics"][kind]} for r in recs for kind in ("raw", "on_input_skeleton")]
-    out += ["### Futures put on the input's skeleton", "",
-            "What `jaxmotion predict`'s retargeting (each future moved onto the window's observed bone lengths) does to",
-            "the protocol metrics.", "",
-            *_table(rows, [("sampler", "sampler"), ("output", "output"), *metrics]),
-            "", f"How measured: `python experiments/projection_effect.py RUN` on a DLow run of `dlow_bandai.py` "
-            f"(seed {recs[0]['seed']}, all {recs[0]['n_windows']} test windows; `{ON_SKELETON}`).", ""]
+    out += _section(
+        "Futures put on the input's skeleton",
+        ["What `jaxmotion predict`'s retargeting (each future moved onto the window's observed bone lengths) does to",
+         "the protocol metrics."],
+        _table([{"sampler": r["method"], "output": kind, **r["metrics"][kind]} for r in recs for kind in ("raw", "on_input_skeleton")],
+               [("sampler", "sampler"), ("output", "output"), *metrics]),
+        f"`python experiments/projection_effect.py RUN` on a DLow run of `dlow_bandai.py` "
+        f"(seed {recs[0]['seed']}, all {recs[0]['n_windows']} test windows; `{ON_SKELETON}`).")
     d = json.loads((EXP / DIFFUSION_STEPS).read_text())
     m = d["meta"]
-    out += ["### Diffusion: accuracy against DDIM steps", "",
-            *_table(d["rows"], [("DDIM steps", "steps"), ("K", "K"), *metrics, ("s per batch", "batch_s")]),
-            "", f"How measured: `python experiments/diffusion_steps.py --config {m['config']}` on one trained run (seed {m['seed']}), "
-            f"{m['n_windows']} of the {m['n_test_windows']} test windows, batches of {m['batch']} ({m['cpu']}, jax {m['jax_version']}; "
-            f"`{DIFFUSION_STEPS}`).", ""]
+    out += _section(
+        "Diffusion: accuracy against DDIM steps", [],
+        _table(d["rows"], [("DDIM steps", "steps"), ("K", "K"), *metrics, ("s per batch", "batch_s")]),
+        f"`python experiments/diffusion_steps.py --config {m['config']}` on one trained run (seed {m['seed']}), "
+        f"{m['n_windows']} of the {m['n_test_windows']} test windows, batches of {m['batch']} ({m['cpu']}, "
+        f"jax {m['jax_version']}; `{DIFFUSION_STEPS}`).")
     return out
 
 
