@@ -1,13 +1,14 @@
 """jaxmotion vs PyTorch, the same networks side by side: one command, one process per framework.
 
-    python benchmarks/run.py            # full run (CPU here: about 10 minutes), updates benchmarks/README.md
-    python benchmarks/run.py --quick    # smoke test: tiny sizes, seconds per case, README untouched
+    python benchmarks/run.py --tag NAME   # full run (2-core CPU: about 10 minutes): benchmarks/results/NAME.json and .md
+    python benchmarks/run.py --quick      # smoke test: tiny sizes, seconds per case
 
 Workers run one after the other (never concurrently, so they do not share cores):
 `benchmarks/jax_bench.py` (jaxmotion), `benchmarks/torch_ref/bench.py` eager, and the same under
 `torch.compile` for the cases named by `--compile-cases`. Each writes its records; this script merges
-them into `benchmarks/results/<tag>.json` and renders the table of `benchmarks/README.md`, with
-ratios PyTorch time / jaxmotion time (> 1: jaxmotion is faster). On a shared machine, run it under
+them into `benchmarks/results/<tag>.json` and renders its tables into `<tag>.md`, with ratios
+PyTorch time / jaxmotion time (> 1: jaxmotion is faster). The documentation's Benchmarks page is
+rendered from the committed results files by `docs/generate.py` (its `SPEED_RUNS` names them). On a shared machine, run it under
 the lock: `flock /tmp/jaxmotion-heavy.lock python benchmarks/run.py`.
 
 Roofline: before the cases, `benchmarks/peak.py` measures each framework's rate on large float32
@@ -39,7 +40,6 @@ from jaxmotion import hugepages  # noqa: E402
 TARGETS = {"train": 1.5, "sample_k50": 2.0, "ddim_100": 3.0}  # jaxmotion / PyTorch-eager speed-ups asked for
 # Issue 18: a case whose jaxmotion time is above this fraction of the measured peak is limited by the machine.
 MACHINE_LIMITED = 0.6
-BEGIN, END = "<!-- results:begin -->", "<!-- results:end -->"
 WORKERS = {
     "jax": ["-m", "benchmarks.jax_bench"],
     "torch_eager": ["-m", "benchmarks.torch_ref.bench"],
@@ -153,7 +153,7 @@ def probe_gflops(row: dict, s: Settings) -> float | None:
 
     The median of the probes after each call (calls of `probe_min_call_s` or more) or of the two
     bracketing the case (shorter calls): a record of the machine's state around the case. On the
-    2-core cloud CPU of benchmarks/README.md it is ~450 GFLOP/s (the measured peak) or about half, and
+    2-core cloud CPU of benchmarks/results/README.md it is ~450 GFLOP/s (the measured peak) or about half, and
     it does not track every case's speed: in the three runs of 2026-12-05 five cases ran faster than
     the probe around them (up to 136% of it), so it is shown, not used to judge a target.
     """
@@ -396,19 +396,9 @@ def _roofline(rows: list[dict], peak: float | None, s: Settings) -> list[str]:
     return lines
 
 
-def update_readme(readme: Path, section: str) -> None:
-    """Replaces the text between the results markers of `readme` with `section`."""
-    text = readme.read_text() if readme.exists() else f"# Benchmarks\n\n{BEGIN}\n{END}\n"
-    if BEGIN not in text or END not in text:
-        text += f"\n{BEGIN}\n{END}\n"
-    head, rest = text.split(BEGIN, 1)
-    _, tail = rest.split(END, 1)
-    readme.write_text(f"{head}{BEGIN}\n{section}\n{END}{tail}")
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true", help="tiny sizes and repeats (smoke test); README untouched")
+    ap.add_argument("--quick", action="store_true", help="tiny sizes and repeats (smoke test)")
     ap.add_argument("--models", default=",".join(MODELS), help=f"comma-separated subset of {','.join(MODELS)}")
     ap.add_argument("--repeats", type=int, help="timed runs per case (default 7; quick 2)")
     ap.add_argument("--warmup", type=int, help="untimed runs per case before timing (default 2; quick 1)")
@@ -420,7 +410,7 @@ def main(argv=None):
     ap.add_argument("--update", action="store_true",
                     help="re-run only --frameworks and merge them into the existing results file of --tag")
     ap.add_argument("--tag", help="results file name (default: cpu, or quick)")
-    ap.add_argument("--no-readme", action="store_true", help="do not update benchmarks/README.md")
+    ap.add_argument("--no-readme", action="store_true", help="accepted for older commands; nothing updates a README")
     ap.add_argument("--hugepages", choices=("on", "off"), default="on",
                     help="glibc's huge-page tunable for every worker, both frameworks (jaxmotion/hugepages.py; default on, "
                          "as the jaxmotion command runs)")
@@ -433,8 +423,6 @@ def main(argv=None):
         out = ROOT / "benchmarks" / "results" / f"{args.tag or 'cpu'}.json"
         section = render(json.loads(out.read_text()))
         out.with_suffix(".md").write_text(section + "\n")
-        if not args.no_readme:
-            update_readme(ROOT / "benchmarks" / "README.md", section)
         print(section)
         return
     models = tuple(m for m in args.models.split(",") if m)
@@ -497,8 +485,6 @@ def main(argv=None):
     out.write_text(json.dumps(doc, indent=1))
     section = render(doc)
     (out.with_suffix(".md")).write_text(section + "\n")
-    if not (args.quick or args.no_readme):
-        update_readme(ROOT / "benchmarks" / "README.md", section)
     print(section)
     print(f"\nwrote {out} ({doc['wall_s'] / 60:.1f} min)")
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import warnings
 from collections import defaultdict
 from pathlib import Path
 
@@ -105,20 +106,25 @@ def train_minutes(run: Path) -> float | None:
 
 def headline(run_dirs: list[str], metrics: tuple[str, ...]) -> str:
     """Returns the cross-method markdown tables (one per K) described in the module docstring."""
+    runs = []
+    for d in run_dirs:
+        f = Path(d) / "metrics.json"
+        if f.is_file():
+            runs.append((json.loads(f.read_text()), train_minutes(Path(d))))
+    return headline_records(runs, metrics)
+
+
+def headline_records(runs: list[tuple[list[dict], float | None]], metrics: tuple[str, ...]) -> str:
+    """Returns the tables of `headline` for runs given as `(metrics.json records, training minutes or None)`."""
     # (K, MM ground truth, sampler) -> config -> seed -> metrics. Runs whose multimodal ground truth
     # differs (MotionMap's default takes it from the training windows) get tables of their own:
     # their MMADE / MMFDE are not comparable with the protocol's.
     rows: dict = defaultdict(lambda: defaultdict(dict))
     minutes: dict = defaultdict(list)
-    for d in run_dirs:
-        f = Path(d) / "metrics.json"
-        if not f.is_file():
-            continue
-        records = json.loads(f.read_text())
+    for records, m in runs:
         for rec in records:
             seed = int(rec.get("seed", rec["config"].get("seed", 0)))
             rows[(int(rec["K"]), rec.get("mm_source", "test"), rec["method"])][rec["config"]["name"]][seed] = rec["metrics"]
-        m = train_minutes(Path(d))
         if m is not None:
             minutes[records[0]["config"]["name"]].append(m)
     extra = [m for m in HEADLINE_EXTRA if any(m in v for r in rows.values() for c in r.values() for v in c.values())]
@@ -127,15 +133,18 @@ def headline(run_dirs: list[str], metrics: tuple[str, ...]) -> str:
     out = []
     for k, mm in sorted({(k, mm) for k, mm, _ in rows}, key=lambda km: (-km[0], km[1] != "test", km[1])):
         title = f"K = {k}" + ("" if mm == "test" else f", MM ground truth: {mm!r} (not comparable with the protocol's)")
-        out += [title, "", "| sampler | budget (config) | seeds | train min | " + " | ".join(cols) + " |",
-                "|" + " --- |" * (4 + len(cols))]
+        timed = bool(minutes)  # the "train min" column only where some run's logs gave its training time
+        out += [title, "", "| sampler | budget (config) | seeds | " + ("train min | " if timed else "") + " | ".join(cols) + " |",
+                "|" + " --- |" * (3 + timed + len(cols))]
         samplers = sorted((s for kk, m, s in rows if (kk, m) == (k, mm)), key=lambda s: (order.get(s, len(order)), s))
         for s in samplers:
             configs = rows[(k, mm, s)]
             for name in sorted(configs)[: 1 if s == "zero_velocity" else None]:  # zero-velocity is the same in every run
                 by_seed = configs[name]
                 arr = np.array([[by_seed[sd].get(m, np.nan) for m in cols] for sd in sorted(by_seed)], float)
-                mean = np.nanmean(arr, 0) if np.isfinite(arr).any() else arr[0]
+                with np.errstate(all="ignore"), warnings.catch_warnings():
+                    warnings.simplefilter("ignore", RuntimeWarning)  # a column no seed has: NaN, shown as "-"
+                    mean = np.nanmean(arr, 0) if np.isfinite(arr).any() else arr[0]
                 sd = arr.std(0, ddof=1) if len(arr) > 1 else None
                 cells = [
                     "-" if not np.isfinite(mv) else f"{mv:.4f}" + ("" if sd is None or not np.isfinite(sv) else f" +- {sv:.4f}")
@@ -144,7 +153,7 @@ def headline(run_dirs: list[str], metrics: tuple[str, ...]) -> str:
                 mins = minutes.get(name)
                 wall = "-" if s == "zero_velocity" or not mins else f"{np.mean(mins):.0f}"
                 seeds = ",".join(map(str, sorted(by_seed)))
-                out.append(f"| {LABELS.get(s, s)} | {name} | {seeds} | {wall} | " + " | ".join(cells) + " |")
+                out.append(f"| {LABELS.get(s, s)} | {name} | {seeds} | " + (f"{wall} | " if timed else "") + " | ".join(cells) + " |")
         out.append("")
     return "\n".join(out)
 

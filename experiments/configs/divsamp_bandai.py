@@ -12,7 +12,7 @@
 #   mean      1.725  0.1979 0.2553 0.2849 0.2961    (sd 0.088 / 0.0069 / 0.0067 / 0.0058 / 0.0103)
 #   authors'  1.568  0.2180 0.2670 0.3037 0.3150    (their code on the same windows and budget, one seed)
 # Every seed is more accurate than the authors' run on ADE, FDE and MMADE; APD is 10% higher.
-# Details and the comparison with DLow: the DivSamp section of experiments/README.md.
+# Details and the comparison with DLow: the DivSamp section of experiments/results/README.md.
 """DivSamp on Bandai-Namco-2 (15 -> 60 frames at 30 fps, 20 joints).
 
 Architecture: the paper's (supp. Tables 3-4). Loss weights: Bandai-Namco-2 is not in the paper;

@@ -6,7 +6,7 @@
 # (K = 50, 200 fixed test windows) in each stage's log.jsonl; experiments/plot_curves.py draws them.
 # Measured 2026-12-02, seed 0, 2-core Intel Xeon: 9,439 s for the whole run (an upper bound: the cores were shared
 # at times). K = 50, 1,609 windows: DivSamp APD 1.997 ADE 0.1521 FDE 0.1718 MMADE 0.2666; its CVAE 1.336 / 0.1519;
-# less diverse than DLow at the long budget (APD 2.874): the CVAE's KL stayed at 1.4-1.7 nats (experiments/README.md,
+# less diverse than DLow at the long budget (APD 2.874): the CVAE's KL stayed at 1.4-1.7 nats (experiments/results/README.md,
 # "Long budget: DivSamp").
 from jaxmotion.config import Config
 from jaxmotion.models.divsamp import DivSampConfig

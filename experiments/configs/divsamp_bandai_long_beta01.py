@@ -12,7 +12,7 @@
 # Result (all 1,609 test windows, K = 50): DivSamp APD 3.230, ADE 0.1550, FDE 0.1606, MMADE 0.2403; its CVAE
 # from N(0, I) APD 2.306, ADE 0.1602, KL 5.7 nats at the end (beta 0.5: DivSamp APD 1.997, ADE 0.1521; DLow
 # long: APD 2.874, ADE 0.1617, FDE 0.1574): with beta 0.1 DivSamp is more diverse than DLow at better ADE
-# and MMADE, FDE within 2%. Details: experiments/README.md, "Long budget: DivSamp".
+# and MMADE, FDE within 2%. Details: experiments/results/README.md, "Long budget: DivSamp".
 import dataclasses
 from pathlib import Path
 

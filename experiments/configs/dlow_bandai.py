@@ -46,7 +46,7 @@
 # own draws of those seeds gave 0.3332 and 0.3349 and the authors' code 0.2803 and 0.2992; from their
 # seed-4 weights (their code: the worse basin, 0.3266) jaxmotion ends in the worse basin too (0.3367).
 # jaxmotion's draws fell there at 5 of 10 seeds, the authors' at 1 of 5 (Fisher p = 0.58): chance, not
-# code (README, "Bandai-Namco-2"). The Q network barely moves off its CVAE (diversity term 0.98-0.99 of its maximum at
+# code (experiments/results/README.md, "The default job and Bandai-Namco-2"). The Q network barely moves off its CVAE (diversity term 0.98-0.99 of its maximum at
 # the end: d_scale 100 is tuned for Human3.6M's 100-frame futures; Bandai's pairwise distances are
 # ~1.2 m, so exp(-d^2/100) ~ 1).
 # With flax's initialisation (before issue 11) the same config gave APD 2.225, ADE 0.3523 (seed 0).
@@ -59,7 +59,7 @@
 # Why beta = 0.3 (the paper uses 0.1 with ~39k CVAE steps; we have 2k): measured before issue 11
 # (flax initialisation) on this budget, beta 0.1 gave APD 14.8 with most samples broken bodies
 # (ADE-m 1.95) and beta 1.0 collapsed the KL to 0.07 nats. With the PyTorch initialisation the
-# CVAE's KL ends at 0.5-1.2 nats at beta 0.3 (seeds 0-2); see experiments/README.md for beta 0.1.
+# CVAE's KL ends at 0.5-1.2 nats at beta 0.3 (seeds 0-2); see experiments/results/README.md for beta 0.1.
 from jaxmotion.config import Config
 from jaxmotion.models.dlow import CVAEConfig, DLowConfig, QConfig
 

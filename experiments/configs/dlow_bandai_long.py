@@ -9,7 +9,7 @@
 # Runtime (seed 0, 2-core AMD EPYC shared with other work, so upper bounds): CVAE 5,153 s, Q 2,014 s of
 # training, evaluation ~90 s. Result (all 1,609 test windows, K = 50): DLow APD 2.874, ADE 0.1617,
 # FDE 0.1574, MMADE 0.2556, MMFDE 0.1888; its CVAE from N(0, I) APD 2.102, ADE 0.1574; BDF 0.063 m,
-# 6.1% of frames outside an angle bound (experiments/README.md, "Long budget: DLow").
+# 6.1% of frames outside an angle bound (experiments/results/README.md, "Long budget: DLow").
 from jaxmotion.config import Config
 from jaxmotion.models.dlow import CVAEConfig, DLowConfig, QConfig
 

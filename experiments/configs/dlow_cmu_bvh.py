@@ -1,6 +1,6 @@
 # jaxmotion run --config experiments/configs/dlow_cmu_bvh.py --data ../shared/data/cmu-bvh --workdir runs/dlow_cmu_bvh
 #
-# A plain folder of BVH clips end to end (README "Data"): the two CMU trials of subject 01. The folder
+# A plain folder of BVH clips end to end (docs/pages/own-data.md): the two CMU trials of subject 01. The folder
 # has one subject, so the default split holds out the last 20% of files (at least one): 01_01.bvh
 # trains, 01_03.bvh is the test file (`--test-files 01_01` swaps them). Each file is resampled from
 # its own rate to 30 fps (120 -> 30 here, data_options "fps"), so the protocol is 0.5 s -> 2 s = 15 -> 60 frames,

@@ -7,7 +7,7 @@
 # Runtime (seed 0, 2026-12-02, 2-core Intel Xeon, nothing else heavy running): CVAE 2,873 s, per-band DLow
 # 1,795 s (learning-curve evaluations included), 4,792 s in all. Result (all 1,609 test windows, K = 50):
 # MOJO APD 5.122, ADE 0.1417, FDE 0.1445, MMADE 0.2435, MMFDE 0.1829, BDF 0.154 m, 20.2% of frames outside an
-# angle bound; its CVAE from N(0, I) APD 2.424, ADE 0.1876 (experiments/README.md, "Long budget: MOJO").
+# angle bound; its CVAE from N(0, I) APD 2.424, ADE 0.1876 (experiments/results/README.md, "Long budget: MOJO").
 from jaxmotion.config import Config
 from jaxmotion.models.mojo import MojoConfig
 

@@ -7,7 +7,7 @@
 # there, so that it pairs with mojo_bandai_long.py for MOJO's claim "the latent DCT space is more diverse
 # than a vector latent". Learning curves every 500 steps (K = 50, 200 fixed test windows).
 # Runtime and result (seed 0, 2026-12-02, 2-core Intel Xeon): 91 min; K = 50 APD 0.260 (its CVAE 0.360), ADE 0.170:
-# the vector latent collapses (KL ~0.001 nats from step 2,000). experiments/README.md, "Long budget: MOJO-DCT".
+# the vector latent collapses (KL ~0.001 nats from step 2,000). experiments/results/README.md, "Long budget: MOJO-DCT".
 from jaxmotion.config import Config
 from jaxmotion.models.mojo import MojoConfig
 

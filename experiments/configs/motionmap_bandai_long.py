@@ -14,7 +14,7 @@
 # MMADE 0.3098, MMFDE 0.4255 (shared budget: ADE 0.310, MMADE 0.363); 1.95 peaks per window. Both stages'
 # learning curves were flat by the end (heatmap from about step 6,000; finetune ADE -0.3% over its last
 # 20%). MotionMap's claim (best MMADE / MMFDE at small K) still does not hold: DivSamp's long run has
-# 0.2902 / 0.3170. Details: the MotionMap cell of experiments/README.md's claims table and
+# 0.2902 / 0.3170. Details: the MotionMap cell of experiments/results/README.md's claims table and
 # experiments/results/motionmap_tables_bandai_long.md.
 import dataclasses
 from pathlib import Path

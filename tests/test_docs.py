@@ -1,0 +1,145 @@
+"""The documentation runs: every fenced Python block of README.md and docs/pages/ is executed, shell blocks
+are run or marked as not run, the API reference lists every module, and the generated tables are up to date.
+
+Conventions (docs/pages/about-docs.md): every fence names its language. The Python blocks of one page run
+in order in one namespace, in a temporary folder holding the files the pages use (`my_clips/`: five
+fabricated BVH clips of five subjects; `clip.bvh`: one more). A shell block (`bash`, `sh`, `shell`,
+`console`) is preceded by `<!-- docs-test: run -->` (run here, with `jaxmotion` this checkout's CLI) or by
+`<!-- not run: REASON -->`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.util
+import io
+import os
+import pkgutil
+import re
+import subprocess
+import sys
+import types
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+import jaxmotion
+from humanoid_bvh import humanoid_bvh
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+PAGES = [ROOT / "README.md", *sorted((DOCS / "pages").glob("*.md"))]
+SHELL = {"bash", "sh", "shell", "console"}
+RUN_MARK = "<!-- docs-test: run -->"
+NOT_RUN = re.compile(r"^<!-- not run: \S.* -->$")
+
+
+@dataclass
+class Block:
+    page: Path
+    line: int  # 1-based line of the opening fence
+    lang: str
+    code: str
+    mark: str  # the last non-blank line before the fence
+
+    def where(self) -> str:
+        return f"{self.page.relative_to(ROOT)}:{self.line}"
+
+
+def blocks(page: Path) -> list[Block]:
+    """Returns the fenced code blocks of a markdown page (fences at any indentation, ``` or longer)."""
+    out, lines = [], page.read_text().splitlines()
+    i = 0
+    while i < len(lines):
+        m = re.match(r"^(\s*)(`{3,})(.*)$", lines[i])
+        if not m:
+            i += 1
+            continue
+        indent, fence, info = m.groups()
+        body, j = [], i + 1
+        while j < len(lines) and not re.match(rf"^\s*{fence}\s*$", lines[j]):
+            body.append(lines[j][len(indent):] if lines[j].startswith(indent) else lines[j])
+            j += 1
+        if j == len(lines):
+            raise AssertionError(f"{page.relative_to(ROOT)}:{i + 1}: fence never closed")
+        before = [ln.strip() for ln in lines[:i] if ln.strip()]
+        out.append(Block(page, i + 1, info.strip().split(" ")[0].lower(), "\n".join(body) + "\n", before[-1] if before else ""))
+        i = j + 1
+    return out
+
+
+ALL = [b for p in PAGES for b in blocks(p)]
+
+
+def test_every_fence_names_its_language_and_every_shell_block_is_run_or_marked():
+    assert [b.where() for b in ALL if not b.lang] == [], "a fence without a language: name it (python, bash, text, ...)"
+    unmarked = [b.where() for b in ALL if b.lang in SHELL and b.mark != RUN_MARK and not NOT_RUN.match(b.mark)]
+    assert unmarked == [], f"shell blocks neither run ({RUN_MARK}) nor marked '<!-- not run: REASON -->'"
+    assert [b.where() for b in ALL if b.lang == "python" and b.mark.startswith("<!--")] == [], "every Python block runs"
+    assert any(b.lang == "python" for b in ALL if b.page.name == "README.md")
+
+
+@pytest.fixture(scope="module")
+def workdir(tmp_path_factory):
+    d = tmp_path_factory.mktemp("docs")
+    (d / "my_clips").mkdir()
+    for i in range(1, 6):
+        humanoid_bvh("bandai", d / "my_clips" / f"s{i}_walk.bvh", frames=150, seed=i)
+    humanoid_bvh("bandai", d / "clip.bvh", frames=150, seed=9)
+    return d
+
+
+@pytest.mark.parametrize("page", [p for p in PAGES if any(b.lang == "python" for b in blocks(p))], ids=lambda p: p.name)
+def test_python_examples_run(page, workdir, monkeypatch):
+    monkeypatch.chdir(workdir)
+    module = types.ModuleType("docs_example")  # a real module: dataclasses and pickling look their class's module up
+    monkeypatch.setitem(sys.modules, module.__name__, module)
+    namespace = module.__dict__
+    for b in (b for b in blocks(page) if b.lang == "python"):
+        out = io.StringIO()
+        try:
+            with contextlib.redirect_stdout(out):
+                exec(compile(b.code, b.where(), "exec"), namespace)
+        except Exception as e:
+            raise AssertionError(f"the example at {b.where()} failed: {type(e).__name__}: {e}\n{out.getvalue()}") from e
+
+
+@pytest.mark.parametrize("block", [b for b in ALL if b.mark == RUN_MARK], ids=lambda b: b.where())
+def test_marked_shell_examples_run(block, workdir):
+    assert block.lang in SHELL
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    script = f'jaxmotion() {{ "{sys.executable}" -m jaxmotion.cli "$@"; }}\nset -e\n{block.code}'
+    r = subprocess.run(["bash", "-c", script], cwd=workdir, env=env, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, f"{block.where()} failed:\n{r.stdout}\n{r.stderr}"
+
+
+def test_api_reference_lists_every_module():
+    listed = re.findall(r"^::: (\S+)$", (DOCS / "pages" / "api.md").read_text(), re.M)
+    modules = {"jaxmotion", *(m.name for m in pkgutil.walk_packages(jaxmotion.__path__, "jaxmotion."))}
+    assert sorted(modules - set(listed)) == [], "modules missing from docs/pages/api.md"
+    assert sorted(set(listed) - modules) == [], "docs/pages/api.md names modules that do not exist"
+    assert len(listed) == len(set(listed))
+
+
+def _generator():
+    spec = importlib.util.spec_from_file_location("docs_generate", DOCS / "generate.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_generated_tables_are_up_to_date():
+    """docs/generate.py renders the results and benchmark pages and the README's methods table from the
+    committed result files; regenerating must change nothing."""
+    stale = [str(p.relative_to(ROOT)) for p, text in _generator().render_all().items() if p.read_text() != text]
+    assert stale == [], "out of date: run `python docs/generate.py`"
+
+
+def test_the_site_builds_with_warnings_as_errors(tmp_path):
+    pytest.importorskip("mkdocs")
+    pytest.importorskip("mkdocstrings")
+    r = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-q", "-f", str(DOCS / "mkdocs.yml"),
+                        "-d", str(tmp_path / "site")], capture_output=True, text=True, timeout=300,
+                       env=dict(os.environ, NO_MKDOCS_2_WARNING="1"))
+    assert r.returncode == 0, r.stdout + r.stderr
