@@ -14,7 +14,7 @@
     sampling included, MM sets over all test windows). Target: under 30 s once compiled.
 
 Each part prints the CPU model, the time spent compiling (jax's own compile events,
-`jaxmotion.compile_time`) and the rest, and the metric values beside a reference (for (a) the run's
+`jaxmotion.train.compile_time`) and the rest, and the metric values beside a reference (for (a) the run's
 own metrics.json, for (b) the previous run of this script, `--out`), so a speed-up that changes the
 numbers shows; (a) also times each sampler's sampling alone, to say where the time goes. The run
 folders are only read. Timings mean something only on a quiet machine (hence the lock).
@@ -172,10 +172,10 @@ def main(argv=None):
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "eval_speed.json",
                     help="results file; (b)'s metric values are compared with the previous one's")
     ap.add_argument("--hugepages", choices=("on", "off"), default="on",
-                    help="restart with glibc's huge-page tunable as the jaxmotion command does (jaxmotion/hugepages.py); "
+                    help="restart with glibc's huge-page tunable as the jaxmotion command does (jaxmotion/train/hugepages.py); "
                          "off: glibc's default pages")
     args = ap.parse_args(argv)
-    from jaxmotion import hugepages
+    from jaxmotion.train import hugepages
 
     if args.hugepages == "on":
         hugepages.exec_with_hugepages()

@@ -82,7 +82,7 @@ def main(argv=None) -> int:
     extra = dict(e.split("=", 1) for e in args.env)
     label = " ".join([args.flag or ""] + args.env).strip() or "this tree"
     from benchmarks.harness import machine
-    from jaxmotion.hugepages import with_tunable
+    from jaxmotion.train.hugepages import with_tunable
 
     env0 = with_tunable({k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}, on=True)
     settings = {"A": env0, "B": {**env0, **({"XLA_FLAGS": args.flag} if args.flag else {}), **extra}}

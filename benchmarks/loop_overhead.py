@@ -43,8 +43,8 @@ def measure_stage(stage, trained: dict, steps: int, ckpt_every: int) -> dict:
     import jax
     import numpy as np
 
-    from jaxmotion import distributed
-    from jaxmotion.distributed import data_mesh
+    from jaxmotion.train import distributed
+    from jaxmotion.train.distributed import data_mesh
     from jaxmotion.train import loop, runner
     from jax.sharding import NamedSharding, PartitionSpec
 

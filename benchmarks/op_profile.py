@@ -27,7 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from benchmarks.harness import Case, Settings  # noqa: E402
-from jaxmotion import hugepages  # noqa: E402
+from jaxmotion.train import hugepages  # noqa: E402
 
 WRAPPERS = ("Pjit", "PjRt", "Execute", "Thunk", "Threadpool", "Parse", "Handle", "Allocate", "Wait", "$", "Python",
             "end:", "Await", "CreateOutputs", "Common", "while", "call", "conditional")

@@ -35,7 +35,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from benchmarks.harness import MODELS, Settings, machine  # noqa: E402
-from jaxmotion import hugepages  # noqa: E402
+from jaxmotion.train import hugepages  # noqa: E402
 
 TARGETS = {"train": 1.5, "sample_k50": 2.0, "ddim_100": 3.0}  # jaxmotion / PyTorch-eager speed-ups asked for
 # Issue 18: a case whose jaxmotion time is above this fraction of the measured peak is limited by the machine.
@@ -50,7 +50,7 @@ WORKERS = {
 def worker_env(huge: bool) -> dict:
     """Returns the environment of every worker and peak process: the same for both frameworks.
 
-    `huge`: glibc's huge-page tunable on (`jaxmotion/hugepages.py`; what the `jaxmotion` command
+    `huge`: glibc's huge-page tunable on (`jaxmotion/train/hugepages.py`; what the `jaxmotion` command
     runs with where the kernel's mode is `madvise`), else taken out of `GLIBC_TUNABLES`. PyTorch's
     CPU allocator also takes its large tensors from glibc, so both frameworks get the same setting.
     """
@@ -412,7 +412,7 @@ def main(argv=None):
     ap.add_argument("--tag", help="results file name (default: cpu, or quick)")
     ap.add_argument("--no-readme", action="store_true", help="accepted for older commands; nothing updates a README")
     ap.add_argument("--hugepages", choices=("on", "off"), default="on",
-                    help="glibc's huge-page tunable for every worker, both frameworks (jaxmotion/hugepages.py; default on, "
+                    help="glibc's huge-page tunable for every worker, both frameworks (jaxmotion/train/hugepages.py; default on, "
                          "as the jaxmotion command runs)")
     ap.add_argument("--slow-factor", type=float,
                     help="leave out a call whose probe product after it took more than this times its fastest "

@@ -91,7 +91,7 @@ def run_setting(s: dict, args) -> dict:
 
 def worker(args) -> None:
     """Measures one setting in this process (one of `--num-processes` when given) and prints a JSON line (process 0)."""
-    from jaxmotion import distributed
+    from jaxmotion.train import distributed
 
     distributed.initialize(args.coordinator_address, args.num_processes, args.process_id)
     import jax

@@ -67,7 +67,7 @@ def jax_worker(args) -> dict:
     import jax
     import jax.numpy as jnp
 
-    from jaxmotion.compile_time import CompileTimer
+    from jaxmotion.train.compile_time import CompileTimer
     from jaxmotion.methods.common import adam
     from jaxmotion.models import dlow
     from jaxmotion.train.loop import create_state, make_train_step

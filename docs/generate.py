@@ -398,7 +398,7 @@ def results_page() -> str:
     p = json.loads((EXP / PROJECTION_BENCH).read_text())
     out += [
         "",
-        "How measured: `python -m jaxmotion.fit_c3d FILE --out FIT.png` on the recordings in `../shared/data/vicon-c3d`, "
+        "How measured: `python -m jaxmotion.tools.fit_c3d FILE --out FIT.png` on the recordings in `../shared/data/vicon-c3d`, "
         "every frame, gaps included (" + ", ".join(f"`{f}`" for f in C3D_FITS) + ").",
         "",
         f"Recursive projection (K = {p['K']} bodies x {p['T']} frames, {p['markers']} markers, at most {p['max_steps']} "

@@ -35,9 +35,9 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     from jaxmotion import experiment as ex
-    from jaxmotion import metrics
-    from jaxmotion.predictor import run_config
-    from jaxmotion.viz import draw_pose, frames_to_joints, view_axes, plt
+    from jaxmotion.eval import metrics
+    from jaxmotion.tools.predictor import run_config
+    from jaxmotion.tools.viz import draw_pose, frames_to_joints, view_axes, plt
 
     if args.samplers is not None and len(args.samplers) != len(args.runs):
         ap.error(f"--samplers needs one name per run ({len(args.runs)}), got {len(args.samplers)}")

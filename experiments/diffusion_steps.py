@@ -22,7 +22,8 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jaxmotion import experiment, metrics
+from jaxmotion import experiment
+from jaxmotion.eval import metrics
 from jaxmotion.config import load_config
 from jaxmotion.methods.diffusion import sampler
 from jaxmotion.eval import evaluate_windows

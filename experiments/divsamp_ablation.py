@@ -22,7 +22,8 @@ from pathlib import Path
 
 import jax
 
-from jaxmotion import experiment, metrics
+from jaxmotion import experiment
+from jaxmotion.eval import metrics
 from jaxmotion.config import load_config
 from jaxmotion.methods import divsamp as divsamp_method
 from jaxmotion.methods import get_method

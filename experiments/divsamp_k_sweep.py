@@ -19,8 +19,9 @@ from pathlib import Path
 
 import jax
 
-from jaxmotion import experiment, metrics
-from jaxmotion.compile_time import CompileTimer
+from jaxmotion import experiment
+from jaxmotion.eval import metrics
+from jaxmotion.train.compile_time import CompileTimer
 from jaxmotion.config import load_config
 from jaxmotion.eval import evaluate_windows
 

@@ -41,9 +41,10 @@ def main(argv: list[str] | None = None) -> int:
     import jax
     import jax.numpy as jnp
 
-    from jaxmotion import experiment, validity
+    from jaxmotion import experiment
+    from jaxmotion.eval import validity
     from jaxmotion.models import gsps
-    from jaxmotion.viz import draw_pose, frames_to_joints, view_axes
+    from jaxmotion.tools.viz import draw_pose, frames_to_joints, view_axes
 
     cache, rows, v, window = {}, [], None, args.window
     for run in map(Path, args.runs):

@@ -23,7 +23,8 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jaxmotion import experiment, realism
+from jaxmotion import experiment
+from jaxmotion.eval import realism
 from jaxmotion.config import load_config
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -45,7 +45,8 @@ def dlow_realism(runs: Path, data: str, k: int = 50) -> dict[str, dict[str, floa
     import jax
     import numpy as np
 
-    from jaxmotion import experiment, realism
+    from jaxmotion import experiment
+    from jaxmotion.eval import realism
     from jaxmotion.config import load_config
 
     cfg = load_config(Path(__file__).parent / "configs" / "dlow_bandai.py")

@@ -36,7 +36,7 @@ def main(argv=None) -> int:
 
     from jaxmotion import experiment as ex
     from jaxmotion.methods import motionmap
-    from jaxmotion.predictor import run_config
+    from jaxmotion.tools.predictor import run_config
 
     cfg, source = run_config(args.run)
     if cfg.method != "motionmap":

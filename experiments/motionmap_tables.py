@@ -82,7 +82,7 @@ def with_options(cfg, options: dict):
 def evaluate_run(run: Path, out: Path, protocols: dict, data: str | None, train_missing: bool, options: dict | None = None) -> list[dict]:
     from jaxmotion import experiment as ex
     from jaxmotion.methods import get_method
-    from jaxmotion.predictor import run_config
+    from jaxmotion.tools.predictor import run_config
 
     cfg, source = run_config(run)
     method = get_method(cfg.method)

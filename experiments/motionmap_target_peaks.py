@@ -89,7 +89,7 @@ def main(argv=None) -> int:
     from jaxmotion import experiment as ex
     from jaxmotion.methods import motionmap as mmethod
     from jaxmotion.models import motionmap as mm
-    from jaxmotion.predictor import run_config
+    from jaxmotion.tools.predictor import run_config
     from jaxmotion.train.runner import restore_untargeted
 
     cfg, source = run_config(args.run)

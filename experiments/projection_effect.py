@@ -19,8 +19,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxmotion import experiment, metrics
-from jaxmotion.predictor import load, run_config
+from jaxmotion import experiment
+from jaxmotion.eval import metrics
+from jaxmotion.tools.predictor import load, run_config
 from jaxmotion.eval import evaluate_windows
 
 

@@ -10,7 +10,7 @@ key, and prints per run and sampler: BDF (bone deformation, `realism.bone_deform
 fraction of predicted frames outside an angle bound, and the mean pose-prior NLL per frame under the
 GSPS run's flow prior (nats; also without the log-determinant, the release's `eval.py` figure),
 beside APD / ADE / FDE / MMADE / MMFDE from the run's metrics.json (computed there on its own
-`n_windows`), and CMD / FID (`jaxmotion.action_metrics`: the project's own action classifier, trained
+`n_windows`), and CMD / FID (`jaxmotion.eval.action_metrics`: the project's own action classifier, trained
 once per dataset and cached) on the same futures where the data has action labels (`--no-action-metrics`
 leaves them out). A "ground truth" row scores the test windows' true futures. Every run must share the
 GSPS run's skeleton. `--out` writes OUT.md and OUT.json (with the bounds used).
@@ -38,7 +38,7 @@ HEADERS = {"angle_violation": "angle viol.", "prior_nll": "prior NLL", "prior_nl
 def load_run(run: Path, data: str | None, max_windows: int | None, cache: dict):
     """Returns `(cfg, prep, params)` of a trained run directory, its data loaded once per (source, options, seed)."""
     from jaxmotion import experiment
-    from jaxmotion.predictor import run_config
+    from jaxmotion.tools.predictor import run_config
 
     try:
         cfg, source = run_config(run)
@@ -70,7 +70,7 @@ def score(v, chunks, action=None) -> dict[str, float]:
     With an `action_metrics.ActionEvaluator`, also CMD and FID of the same futures (the chunks must
     cover every test window, in order).
     """
-    from jaxmotion import validity
+    from jaxmotion.eval import validity
 
     parts, action_parts = [], []
     for p in chunks:
@@ -96,9 +96,10 @@ def main(argv: list[str] | None = None) -> int:
 
     import jax
 
-    from jaxmotion import experiment, validity
+    from jaxmotion import experiment
+    from jaxmotion.eval import validity
     from jaxmotion.errors import CheckpointError
-    from jaxmotion.predictor import load
+    from jaxmotion.tools.predictor import load
 
     # Only the prior and the bounds are read: a GSPS run stopped once its generator stage began scores too.
     try:

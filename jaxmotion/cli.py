@@ -159,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "predict":
         return _predict(args)
     if args.command == "export":
-        from jaxmotion.predictor import export
+        from jaxmotion.tools.predictor import export
 
         try:
             path = export(args.run_dir, args.out, tuple(args.stages) if args.stages else None)
@@ -171,7 +171,7 @@ def main(argv: list[str] | None = None) -> int:
         return _view(args)
     if args.command == "eval" and args.model is not None:
         return _eval_model(args)
-    from jaxmotion import distributed
+    from jaxmotion.train import distributed
 
     if args.command in ("run", "train", "eval"):  # before anything runs on a device
         distributed.initialize(args.coordinator_address, args.num_processes, args.process_id, auto=args.distributed)
@@ -184,7 +184,7 @@ def main(argv: list[str] | None = None) -> int:
     cfg = _with_overrides(cfg, args, source)
     part_control = _part_control(cfg, args.method) if args.command == "sample" and args.fix_part else None
     workdir = Path(args.workdir or Path("runs") / cfg.name).absolute()
-    from jaxmotion.run_lock import run_lock
+    from jaxmotion.train.run_lock import run_lock
 
     # One process at a time in a run folder (process 0 of a distributed job holds it for all).
     with run_lock(workdir, args.command) if distributed.is_main() else contextlib.nullcontext():
@@ -209,7 +209,8 @@ def _with_overrides(cfg, args, source: str):
 
 
 def _run(args, cfg, workdir: Path, part_control, source: str) -> int:
-    from jaxmotion import distributed, experiment
+    from jaxmotion import experiment
+    from jaxmotion.train import distributed
     from jaxmotion.config import validate
 
     t0 = time.perf_counter()
@@ -243,7 +244,7 @@ def _run(args, cfg, workdir: Path, part_control, source: str) -> int:
         import numpy as np
 
         from jaxmotion.formats.atomic import savez_atomic
-        from jaxmotion.viz import plot_futures
+        from jaxmotion.tools.viz import plot_futures
 
         if not 0 <= args.window < len(prep.windows):
             raise UsageError(f"--window must be in [0, {len(prep.windows)}), got {args.window}")
@@ -286,11 +287,11 @@ def _with_scale(cfg, values: list[str], data: str | None):
 
 
 def _eval_model(args) -> int:
-    """`jaxmotion eval --model M --data FOLDER`: every clip of the folder a test clip (`jaxmotion.evaluate_folder`)."""
+    """`jaxmotion eval --model M --data FOLDER`: every clip of the folder a test clip (`jaxmotion.tools.evaluate_folder`)."""
     from jaxmotion.data.units import parse_scale
-    from jaxmotion.evaluate_folder import evaluate_folder
-    from jaxmotion.joint_maps import read_joint_map
-    from jaxmotion.predictor import load
+    from jaxmotion.tools.evaluate_folder import evaluate_folder
+    from jaxmotion.tools.joint_maps import read_joint_map
+    from jaxmotion.tools.predictor import load
 
     if args.data is None or args.config is not None:
         raise SystemExit("jaxmotion eval --model M: give the folder of clips with --data FOLDER (and no --config: the model has one)")
@@ -307,9 +308,9 @@ def _eval_model(args) -> int:
 
 def _predict(args) -> int:
     """`jaxmotion predict`: the model from --model or the first path, the clip from --input or the last path."""
-    from jaxmotion.joint_maps import read_joint_map
-    from jaxmotion.predict_file import predict_file
-    from jaxmotion.predictor import load
+    from jaxmotion.tools.joint_maps import read_joint_map
+    from jaxmotion.tools.predict_file import predict_file
+    from jaxmotion.tools.predictor import load
 
     paths = list(args.paths)
     model = args.model if args.model is not None else (paths.pop(0) if paths else None)
@@ -328,7 +329,7 @@ def _predict(args) -> int:
 
 
 def _view(args) -> int:
-    """`jaxmotion view`: writes the page (`jaxmotion.viewer.view_run`); a bad run, file or option is one line, exit code 2."""
+    """`jaxmotion view`: writes the page (`jaxmotion.tools.viewer.view_run`); a bad run, file or option is one line, exit code 2."""
     run_dir = args.run_dir or args.workdir
     if args.run_dir and args.workdir and Path(args.run_dir).absolute() != Path(args.workdir).absolute():
         raise UsageError(f"RUN_DIR {args.run_dir} and --workdir {args.workdir} differ; give one")
@@ -337,7 +338,7 @@ def _view(args) -> int:
 
         run_dir = Path("runs") / load_config(args.config).name
     try:
-        from jaxmotion.viewer import view_run
+        from jaxmotion.tools.viewer import view_run
 
         lines = view_run(run_dir, args.out, windows=args.windows, k=args.k, method=args.method, seed=args.seed,
                          config=args.config, data=args.data, test_files=args.test_files, keep_skeleton=args.keep_skeleton)
@@ -370,7 +371,7 @@ def _sample_fixed_parts(part_control, cfg, prep, params, i: int, k: int, fix: tu
     import numpy as np
 
     from jaxmotion.formats.atomic import savez_atomic
-    from jaxmotion.viz import plot_futures
+    from jaxmotion.tools.viz import plot_futures
 
     ds = prep.dataset
     try:
@@ -450,9 +451,9 @@ def entry() -> int:
     calls it). Tensorstore's late "Event loop is closed" tracebacks after a failed checkpoint restore
     are dropped (`_LateLoopTracebacksDropped`), so the message is all a user sees.
     """
-    from jaxmotion.hugepages import exec_with_hugepages
+    from jaxmotion.train.hugepages import exec_with_hugepages
 
-    exec_with_hugepages()  # once, before anything runs: large XLA buffers in 2 MiB pages (jaxmotion/hugepages.py)
+    exec_with_hugepages()  # once, before anything runs: large XLA buffers in 2 MiB pages (jaxmotion/train/hugepages.py)
     sys.stderr = _LateLoopTracebacksDropped(sys.stderr)
     try:
         return main()

@@ -42,7 +42,7 @@ class Config:
     method_config: Any = None
     # One Q network is trained per K: DLow's K affine maps are a trained constant.
     eval_k: tuple[int, ...] = (50, 5)
-    # Synthetic mode recall (jaxmotion.metrics.mode_recall) on test windows whose decision point is
+    # Synthetic mode recall (jaxmotion.eval.metrics.mode_recall) on test windows whose decision point is
     # at most `mode_max_boundary` future frames away (there any two modes are >= 0.291 m apart in
     # ADE-term): each sample is assigned to its nearest mode and reaches it when its ADE-term is
     # below `mode_threshold`. 0.4 m is about the zero-velocity ADE on this data (0.42 m): a sample
@@ -73,7 +73,7 @@ class Config:
     curve_every: int = 0
     curve_windows: int = 200
     curve_k: int = 50
-    # CMD and FID (`jaxmotion.action_metrics`, PROTOCOL sec. 2) in every record's metrics when the
+    # CMD and FID (`jaxmotion.eval.action_metrics`, PROTOCOL sec. 2) in every record's metrics when the
     # dataset has action labels (Bandai-Namco-2, the synthetic data); absent otherwise. FID's action
     # classifier is the project's own (not BeLFusion's Human3.6M one), trained once per dataset for
     # `action_classifier_steps` Adam steps and cached under `~/.cache/jaxmotion/action_classifiers/`.

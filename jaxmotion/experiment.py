@@ -17,7 +17,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxmotion import distributed
+from jaxmotion.train import distributed
 from jaxmotion.config import Config
 from jaxmotion.data.datasets import BANDAI_TARBALL, load_dataset
 from jaxmotion.data.folder_split import folder_split
@@ -29,8 +29,8 @@ from jaxmotion.eval import loop as eval_loop
 from jaxmotion.eval.loop import format_record, predict_chunks
 from jaxmotion.method import Predictor
 from jaxmotion.methods import get_method
-from jaxmotion.metrics import multimodal_gt
-from jaxmotion.predictor import write_manifest
+from jaxmotion.eval.metrics import multimodal_gt
+from jaxmotion.tools.predictor import write_manifest
 from jaxmotion.train import runner
 
 __all__ = ["get_method", "resolve", "load_data", "Prepared", "prepare", "check_lengths", "train", "restore", "predictors",
@@ -83,7 +83,7 @@ def plain_bvh_folder(path: Path) -> bool:
 def train(cfg: Config, prep: Prepared, workdir: str | Path, resume: bool = False) -> dict:
     """Returns `{stage name: parameters}` after training every stage of the config's method (`runner.train`).
 
-    Writes `workdir/predictor.json` first (`jaxmotion.predictor`): what `jaxmotion.load` needs to predict.
+    Writes `workdir/predictor.json` first (`jaxmotion.tools.predictor`): what `jaxmotion.load` needs to predict.
     """
     method = get_method(cfg.method)
     if distributed.is_main():
@@ -135,7 +135,7 @@ def report(cfg: Config, prep: Prepared, params, workdir: Path, method: str | Non
     on average: where a good stochastic predictor should show several distinct futures. A method
     with `Method.pictures` draws its own pictures of that window too; their paths are printed.
     """
-    from jaxmotion.viz import plot_futures  # matplotlib: imported only when a picture is drawn
+    from jaxmotion.tools.viz import plot_futures  # matplotlib: imported only when a picture is drawn
 
     ds = prep.dataset
     k = max(cfg.eval_k)
@@ -149,7 +149,7 @@ def report(cfg: Config, prep: Prepared, params, workdir: Path, method: str | Non
         f"{method}, K={k}, {ds.t_his} observed -> {ds.t_pred} predicted frames at {ds.fps:g} fps"
     )
     png = plot_futures(prep.x[i], preds, prep.y[i], ds.skeleton.parents, workdir / "samples.png", title=title)
-    from jaxmotion.animate import animate_futures
+    from jaxmotion.tools.animate import animate_futures
 
     animate_futures(prep.x[i], preds, prep.y[i], ds.skeleton.parents, workdir / "samples.gif", fps=ds.fps,
                     title=f"{ds.name}: test window {i}, {method}, K={k}; observed, then the futures")

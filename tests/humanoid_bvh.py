@@ -8,7 +8,7 @@ import numpy as np
 
 from jaxmotion.formats.bvh import Bvh
 from jaxmotion.formats.bvh_write import write_bvh
-from jaxmotion.joint_maps import CONVENTIONS
+from jaxmotion.tools.joint_maps import CONVENTIONS
 
 # (role or extra name, parent, offset in metres: x left, y up, z forward). Extras are joints some conventions add.
 _BODY = [

@@ -1,4 +1,4 @@
-"""CMD and FID (`jaxmotion.action_metrics`): the definitions on fabricated data, the classifier, and evaluation records."""
+"""CMD and FID (`jaxmotion.eval.action_metrics`): the definitions on fabricated data, the classifier, and evaluation records."""
 
 import dataclasses
 import json
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from jaxmotion import action_metrics as am
+from jaxmotion.eval import action_metrics as am
 from jaxmotion import experiment as ex
 from jaxmotion.config import Config
 from jaxmotion.data.synthetic import make_synthetic

@@ -1,9 +1,9 @@
-"""jaxmotion.compile_time: the seconds jax spends compiling inside a block, from its own compile events."""
+"""jaxmotion.train.compile_time: the seconds jax spends compiling inside a block, from its own compile events."""
 
 import jax
 import jax.numpy as jnp
 
-from jaxmotion.compile_time import CompileTimer, union_seconds
+from jaxmotion.train.compile_time import CompileTimer, union_seconds
 
 
 def test_union_counts_overlapping_spans_once():

@@ -119,7 +119,8 @@ def _worker_steps(out: Path) -> None:
     import optax
     from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-    from jaxmotion import distributed, experiment
+    from jaxmotion import experiment
+    from jaxmotion.train import distributed
     from jaxmotion.train import runner
     from jaxmotion.train.loop import bn_optimizer, create_state, make_bn_train_step, make_train_step
 
@@ -251,7 +252,7 @@ def test_micro_batches_of_a_gru_step_on_one_device_and_a_batch_that_does_not_spl
     import jax.numpy as jnp
     import optax
 
-    from jaxmotion import distributed
+    from jaxmotion.train import distributed
     from jaxmotion.errors import ConfigError
     from jaxmotion.models import dlow
     from jaxmotion.train.loop import create_state, make_train_step

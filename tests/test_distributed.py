@@ -52,7 +52,7 @@ def _prepared(cfg):
 def _leaves(params) -> dict[str, np.ndarray]:
     import jax
 
-    from jaxmotion import distributed
+    from jaxmotion.train import distributed
 
     return {jax.tree_util.keystr(p): distributed.gather(v) for p, v in jax.tree_util.tree_leaves_with_path(params)}
 
@@ -108,11 +108,11 @@ def _worker_process(pid: int, port: int, work: Path, kill_at: int | None) -> Non
 
     Process 0 writes `predictor.json` first, as `experiment.train` does, so the run loads with `jaxmotion.load`.
     """
-    from jaxmotion import distributed
+    from jaxmotion.train import distributed
 
     distributed.initialize(f"127.0.0.1:{port}", 2, pid)
     from jaxmotion.methods import get_method
-    from jaxmotion.predictor import write_manifest
+    from jaxmotion.tools.predictor import write_manifest
     from jaxmotion.train import runner
 
     cfg, prep = _prepared(_configs()["dlow"])
@@ -281,7 +281,7 @@ def test_two_process_run_loads_and_predicts_in_one_process(two):
 
 
 def test_initialize_without_settings_is_a_no_op_and_bad_settings_are_clear(monkeypatch):
-    from jaxmotion import distributed
+    from jaxmotion.train import distributed
     from jaxmotion.errors import ConfigError
 
     for v in distributed.ENV.values():

@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jaxmotion import diversity, metrics
+from jaxmotion import diversity
+from jaxmotion.eval import metrics
 from jaxmotion.config import Config, ConfigError, load_config, validate
 from jaxmotion.data.validation import validation_indices, validation_split
 from jaxmotion.data.windows import sequence_frames, test_windows

@@ -21,7 +21,7 @@ import dataclasses
 from jaxmotion.config import Config
 from jaxmotion.method import ExtraMetrics, Method, register
 from jaxmotion.methods.common import zero_velocity
-from jaxmotion import realism
+from jaxmotion.eval import realism
 
 
 def extra(cfg, ds, params):
@@ -85,7 +85,7 @@ def test_eval_walks_downward_only(tmp_path):
 def test_the_tracer_sees_a_climb_back(tmp_path, monkeypatch):
     # The check can fail: a metric that calls back into the evaluation loop is reported.
     from jaxmotion.eval import loop
-    from jaxmotion import metrics
+    from jaxmotion.eval import metrics
 
     real = metrics.WindowMetricStream.result
 

@@ -4,7 +4,7 @@ import sys
 
 import pytest
 
-from jaxmotion import hugepages
+from jaxmotion.train import hugepages
 
 
 def test_thp_mode_reads_the_bracketed_choice(tmp_path):
@@ -36,7 +36,7 @@ def test_with_tunable_keeps_the_other_tunables():
 
 
 def _child_tunables(env: dict) -> str:
-    code = ("import os, sys; from jaxmotion.hugepages import exec_with_hugepages; print('start', flush=True); "
+    code = ("import os, sys; from jaxmotion.train.hugepages import exec_with_hugepages; print('start', flush=True); "
             "exec_with_hugepages(); print(os.environ.get('GLIBC_TUNABLES', ''))")
     return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout
 

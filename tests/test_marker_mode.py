@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 # CMD and FID are off in this file's configs (`action_metrics=False`): tests/test_action_metrics.py covers them.
-from jaxmotion import experiment, realism
+from jaxmotion import experiment
+from jaxmotion.eval import realism
 from jaxmotion.body.markersets import LIMB_MARKER_PAIRS
 from jaxmotion.body.skeleton import toy_skeleton
 from jaxmotion.data.markers import canonical_frames, canonicalise, marker_skeleton

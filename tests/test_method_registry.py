@@ -164,7 +164,7 @@ def test_learning_curve_takes_its_mm_ground_truth_from_the_config():
     """`learning_curve` scores MMADE against the evaluation's source (`Config.mm_ground_truth`), not always the method's own."""
     import dataclasses
 
-    from jaxmotion import metrics
+    from jaxmotion.eval import metrics
     from jaxmotion.eval import learning_curve, reference
     from jaxmotion.methods import get_method
     from jaxmotion.methods.common import zero_velocity

@@ -1,4 +1,4 @@
-"""Tests of jaxmotion.metrics against hand-computed values, properties and a loop reference (PROTOCOL sec. 2)."""
+"""Tests of jaxmotion.eval.metrics against hand-computed values, properties and a loop reference (PROTOCOL sec. 2)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from jaxtyping import TypeCheckError
 
-from jaxmotion import metrics as M
+from jaxmotion.eval import metrics as M
 from jaxmotion.eval import evaluate_windows
 
 # Every new shape recompiles, so examples are few and shapes come from a small range.

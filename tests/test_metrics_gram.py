@@ -1,4 +1,4 @@
-"""The matrix-product forms of APD and MMADE / MMFDE (jaxmotion.metrics) against their definitions (PROTOCOL sec. 2).
+"""The matrix-product forms of APD and MMADE / MMFDE (jaxmotion.eval.metrics) against their definitions (PROTOCOL sec. 2).
 
 APD and the multimodal terms are computed from `|a|^2 + |b|^2 - 2 a.b` (one product per window or
 per block of set members) rather than from explicit differences; these tests compare them with
@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxmotion import metrics as M
+from jaxmotion.eval import metrics as M
 
 
 def _apd_loop(pred):

@@ -14,7 +14,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxmotion import experiment, metrics
+from jaxmotion import experiment
+from jaxmotion.eval import metrics
 from jaxmotion.config import Config, validate
 from jaxmotion.method import Method
 from jaxmotion.eval import reference

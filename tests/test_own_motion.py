@@ -13,8 +13,8 @@ from jaxmotion.data.datasets import load_bvh_folder
 from jaxmotion.data.units import PLAUSIBLE_SIZE, parse_scale
 from jaxmotion.errors import DataError
 from jaxmotion.formats.bvh import forward_kinematics, read_bvh
-from jaxmotion.joint_maps import CONVENTIONS, conventions_of, match_skeleton
-from jaxmotion.predict_file import predict_file
+from jaxmotion.tools.joint_maps import CONVENTIONS, conventions_of, match_skeleton
+from jaxmotion.tools.predict_file import predict_file
 
 from humanoid_bvh import humanoid_bvh
 
@@ -226,7 +226,7 @@ def test_eval_of_the_shipped_model_on_the_cmu_folder(tmp_path, capsys):
 
 
 def test_view_finds_the_data_relative_to_the_run_or_says_pass_data(tmp_path, monkeypatch):
-    from jaxmotion.viewer import run_data
+    from jaxmotion.tools.viewer import run_data
 
     (tmp_path / "project" / "data" / "clips").mkdir(parents=True)
     run = tmp_path / "project" / "runs" / "r"

@@ -22,9 +22,9 @@ from jaxmotion.errors import CheckpointError, DataError
 from jaxmotion.formats.bvh import euler_matrices, forward_kinematics, read_bvh
 from jaxmotion.formats.bvh_write import matrix_to_euler, read_end_sites, write_bvh
 from jaxmotion.models.dlow import CVAEConfig, DLowConfig, QConfig
-from jaxmotion.predict_file import predict_file
-from jaxmotion.predictor import config_from_dict
-from jaxmotion.retarget import bvh_from_positions, fit_bvh
+from jaxmotion.tools.predict_file import predict_file
+from jaxmotion.tools.predictor import config_from_dict
+from jaxmotion.tools.retarget import bvh_from_positions, fit_bvh
 
 CMU = Path(__file__).resolve().parents[2] / "shared" / "data" / "cmu-bvh"
 

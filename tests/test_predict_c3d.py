@@ -20,9 +20,9 @@ from jaxmotion.body.skeleton import toy_skeleton
 from jaxmotion.data.markers import canonicalise, marker_skeleton
 from jaxmotion.data.types import MotionDataset
 from jaxmotion.errors import DataError
-from jaxmotion.predict_file import read_motion
-from jaxmotion.predict_markers import fill_gaps, marker_window
-from jaxmotion.predictor import layout
+from jaxmotion.tools.predict_file import read_motion
+from jaxmotion.tools.predict_markers import fill_gaps, marker_window
+from jaxmotion.tools.predictor import layout
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # tests/, for the C3D writer
 from c3d_files import c3d_file  # noqa: E402

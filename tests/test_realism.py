@@ -5,7 +5,7 @@ import types
 import numpy as np
 import pytest
 
-from jaxmotion import realism
+from jaxmotion.eval import realism
 from jaxmotion.data.types import Skeleton
 
 T = 8

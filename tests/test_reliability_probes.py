@@ -187,7 +187,7 @@ def test_predict_never_writes_non_finite_futures(tiny_cli_run, tmp_path):
 
     import jaxmotion
     from jaxmotion.errors import CheckpointError
-    from jaxmotion.predict_file import predict_file
+    from jaxmotion.tools.predict_file import predict_file
 
     _, work = tiny_cli_run
     model = jaxmotion.load(work)
@@ -278,14 +278,14 @@ def _npz_clip(path: Path, **fields) -> Path:
     ({"names": np.array(["root", "a", "a"])}, r"joint names used twice: \['a'\]"),
 ], ids=["negative_scale", "inf_scale", "nan_fps", "zero_fps", "negative_fps", "up_axis_5", "up_axis_1.5", "duplicate_names"])
 def test_npz_clip_fields_that_would_silently_mislead_are_named_errors(tmp_path, fields, problem):
-    from jaxmotion.predict_file import read_motion
+    from jaxmotion.tools.predict_file import read_motion
 
     with pytest.raises(DataError, match=r"clip\.npz: " + problem):
         read_motion(_npz_clip(tmp_path / "clip.npz", **fields))
 
 
 def test_a_negative_scale_argument_is_a_named_error(tmp_path):
-    from jaxmotion.predict_file import read_motion
+    from jaxmotion.tools.predict_file import read_motion
 
     (tmp_path / "c.bvh").write_text(BVH_TWO_JOINTS)
     with pytest.raises(DataError, match=r"c\.bvh: scale must be .* > 0, got -1"):
@@ -430,11 +430,11 @@ def test_a_second_process_on_a_run_folder_gets_the_lock_error_and_a_dead_holders
     import subprocess
     import sys
 
-    from jaxmotion.run_lock import LOCK_FILE, run_lock
+    from jaxmotion.train.run_lock import LOCK_FILE, run_lock
 
     cfg, make = run_copy
     run = make("locked")
-    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from jaxmotion.run_lock import run_lock\n"
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from jaxmotion.train.run_lock import run_lock\n"
                                "with run_lock(sys.argv[1], 'train'):\n    print('held', flush=True); time.sleep(600)", str(run)],
                               stdout=subprocess.PIPE, text=True, env={**os.environ, "PYTHONPATH": str(REPO)})
     try:
@@ -560,7 +560,7 @@ def test_a_joint_that_cannot_rotate_is_one_line_and_nothing_is_written(run_copy,
 
     from jaxmotion.data.synthetic import make_synthetic
     from jaxmotion.formats.bvh_write import write_bvh
-    from jaxmotion.retarget import bvh_from_positions
+    from jaxmotion.tools.retarget import bvh_from_positions
 
     _, make = run_copy
     run = make("channels0")

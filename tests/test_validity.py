@@ -8,7 +8,7 @@ import numpy as np
 import optax
 import pytest
 
-from jaxmotion import validity
+from jaxmotion.eval import validity
 from jaxmotion.data.synthetic import SKELETON, make_synthetic
 from jaxmotion.data.windows import sequence_frames
 from jaxmotion.models import gsps
@@ -108,7 +108,8 @@ def test_check_skeleton_names_the_mismatch():
 
 
 def test_gsps_single_future_skip_is_the_protocol_on_windows_with_a_neighbour():
-    from jaxmotion import experiment, metrics
+    from jaxmotion import experiment
+    from jaxmotion.eval import metrics
     from jaxmotion.methods import get_method
 
     ds = make_synthetic(0, train_sequences=1, train_segments=3, test_sequences=2, test_segments=3)

@@ -13,11 +13,13 @@ import numpy as np
 import pytest
 
 import jaxmotion
-from jaxmotion import experiment, metrics, viewer
+from jaxmotion import experiment
+from jaxmotion.eval import metrics
+from jaxmotion.tools import viewer
 from jaxmotion.cli import main
 from jaxmotion.config import load_config
 from jaxmotion.data.synthetic import PARENTS
-from jaxmotion.viz import frames_to_joints, view_axes
+from jaxmotion.tools.viz import frames_to_joints, view_axes
 
 CHROMIUM = next((p for p in map(shutil.which, ("chromium", "chromium-browser", "google-chrome")) if p), None)
 MAGENTA = np.array([0xE6, 0x00, 0x7E])  # viewer.TRUTH_COLOR
@@ -161,8 +163,8 @@ def test_headless_chromium_draws_the_ground_truth_skeleton(page, tmp_path):
 
 
 def test_keep_skeleton_puts_the_futures_on_the_observed_bone_lengths(page):
-    from jaxmotion.predictor import load
-    from jaxmotion.viewer import window_views
+    from jaxmotion.tools.predictor import load
+    from jaxmotion.tools.viewer import window_views
 
     _, work, prep = page
     model, windows = load(work), np.array([0, 5])

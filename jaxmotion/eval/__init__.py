@@ -1,6 +1,6 @@
 """Evaluation (PROTOCOL secs. 2 and 5): the metrics' references, the protocol's averages and its deviations, evaluators.
 
-- `jaxmotion.metrics`: the per-window metrics (APD, ADE, FDE, MMADE, MMFDE, ...), pure functions.
+- `jaxmotion.eval.metrics`: the per-window metrics (APD, ADE, FDE, MMADE, MMFDE, ...), pure functions.
 - `references`: where MMADE / MMFDE's multimodal ground truth comes from (`REFERENCES`).
 - `protocol`: averages over windows, and the deviations of published code (`DEVIATIONS`);
   `evaluate_windows`, the metrics of predictions for given windows in one call.

@@ -16,7 +16,7 @@ import numpy as np
 
 from jaxmotion.eval.protocol import Deviation, WindowSets, averages, window_sets
 from jaxmotion.eval.references import MMGroundTruth
-from jaxmotion.metrics import WindowMetricStream, mode_recall
+from jaxmotion.eval.metrics import WindowMetricStream, mode_recall
 
 
 class ProtocolMetrics:

@@ -19,8 +19,9 @@ import jax
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-from jaxmotion import action_metrics, distributed
-from jaxmotion.compile_time import CompileTimer
+from jaxmotion.eval import action_metrics
+from jaxmotion.train import distributed
+from jaxmotion.train.compile_time import CompileTimer
 from jaxmotion.config import Config, to_dict
 from jaxmotion.data.prepare import Prepared
 from jaxmotion.eval.evaluators import ActionMetrics, MethodMetrics, ModeRecall, ProtocolMetrics
@@ -61,7 +62,7 @@ def action_evaluator(cfg: Config, prep: Prepared) -> action_metrics.ActionEvalua
     """Returns the CMD / FID evaluator of `prep`'s test windows, or None without labels.
 
     The classifier is trained once per dataset at `cfg.action_classifier_steps` and cached
-    (`jaxmotion.action_metrics`); its feature batches follow `cfg.eval_batch`.
+    (`jaxmotion.eval.action_metrics`); its feature batches follow `cfg.eval_batch`.
     """
     c = action_metrics.ClassifierConfig(num_steps=cfg.action_classifier_steps)
     return action_metrics.evaluator(prep.dataset, prep.y, prep.seq_index, prep.starts, config=c, batch=cfg.eval_batch)

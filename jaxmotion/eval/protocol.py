@@ -25,7 +25,7 @@ import numpy as np
 from beartype import beartype
 from jaxtyping import ArrayLike, Float, Int, jaxtyped
 
-from jaxmotion.metrics import METRIC_NAMES, MMSets, multimodal_gt, window_metrics
+from jaxmotion.eval.metrics import METRIC_NAMES, MMSets, multimodal_gt, window_metrics
 
 _checked = jaxtyped(typechecker=beartype)
 MMDeviation = Literal[None, "divsamp", "comusion"]
@@ -36,7 +36,7 @@ class WindowSets(NamedTuple):
 
     idx: np.ndarray  # (n, m) left-packed member indices into `futures`
     used: np.ndarray  # (n, m) the members that enter MMADE / MMFDE
-    futures: np.ndarray  # (r, t_pred, D) the futures `idx` indexes
+    futures: ArrayLike  # (r, t_pred, D) the futures `idx` indexes
     n_members: np.ndarray  # (n,) set sizes as built (the window itself included in test-window sets)
     n_others: np.ndarray  # (n,) members other than the window itself that are used
 
@@ -52,7 +52,7 @@ class Deviation:
         """Returns whether windows whose set is themselves alone are left out of every metric."""
         return False
 
-    def used(self, mask: np.ndarray, idx: np.ndarray, is_self: np.ndarray, poses: np.ndarray | None) -> np.ndarray:
+    def used(self, mask: np.ndarray, idx: np.ndarray, is_self: np.ndarray, poses: ArrayLike | None) -> np.ndarray:
         """Returns the members that enter the MM terms."""
         return mask
 
@@ -128,8 +128,8 @@ def multi_future_windows(last_poses: np.ndarray, thr: float) -> np.ndarray:
     return sel
 
 
-def window_sets(sets: MMSets, gt: np.ndarray, futures: np.ndarray | None, dev: Deviation = PROTOCOL,
-                poses: np.ndarray | None = None) -> WindowSets:
+def window_sets(sets: MMSets, gt: np.ndarray, futures: ArrayLike | None, dev: Deviation = PROTOCOL,
+                poses: ArrayLike | None = None) -> WindowSets:
     """Returns the `WindowSets` of `sets` over `futures` (None: the test windows' own futures `gt`) under `dev`.
 
     `poses`: the windows' last observed poses, for the deviations that compare them (`DIVSAMP`).

@@ -25,7 +25,7 @@ import numpy as np
 
 from jaxmotion.data.prepare import Prepared
 from jaxmotion.data.windows import test_windows
-from jaxmotion.metrics import MMSets, motionmap_mm_sets, multimodal_gt
+from jaxmotion.eval.metrics import MMSets, motionmap_mm_sets, multimodal_gt
 
 # MotionMap's descriptor: the last three observed frames (paper appendix A; PROTOCOL sec. 2 option).
 MOTIONMAP_DESCRIPTOR_FRAMES = 3

@@ -8,7 +8,7 @@ training poses, checkpointed so the generator and evaluation use the same number
 (any K, i.i.d. noise per part). `sample_part_control` fixes some parts' noise and varies the rest
 (`jaxmotion sample --fix-part`). Evaluation adds, per window, the fraction of predicted frames
 outside the run's own angle bounds, the pose-prior NLL under its own prior and the bone
-deformation (`extra_metrics`, `jaxmotion.validity`), and writes the bounds into every record's
+deformation (`extra_metrics`, `jaxmotion.eval.validity`), and writes the bounds into every record's
 config (`ExtraMetrics.record`).
 """
 
@@ -21,7 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from jaxmotion import validity
+from jaxmotion.eval import validity
 from jaxmotion.method import ExtraMetrics, Method, Stage
 from jaxmotion.methods.common import zero_velocity
 from jaxmotion.models import gsps
@@ -155,7 +155,7 @@ def predictors(cfg, ds, params: dict, k: int) -> dict:
 
 def extra_metrics(cfg, ds, params: dict) -> ExtraMetrics:
     """Returns GSPS's extra metrics for a trained run: per window `angle_violation` under the run's own
-    `angle_bounds` stage, `prior_nll` / `prior_nll_z` under its `prior` stage, and `BDF` (`jaxmotion.validity`);
+    `angle_bounds` stage, `prior_nll` / `prior_nll_z` under its `prior` stage, and `BDF` (`jaxmotion.eval.validity`);
     the record says which bounds the evaluation used and how they were measured."""
     v = validity.from_gsps_run(cfg, ds, params)
     return ExtraMetrics(lambda pred, _gt: validity.window_validity(v, pred), _bounds_record(cfg, params))

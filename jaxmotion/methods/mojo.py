@@ -5,7 +5,7 @@ Eq. (1), or DLow's objective for VAE+DCT), then `q_k{K}` for every K of `Config.
 Predictors: `"mojo"` (DLow on the lowest L bands, N(0, I) above) and, as `MojoConfig.baselines`
 asks, `"mojo_prior"` (N(0, I) in every band), `"zero_velocity"` and `"mojo_proj"` (MOJO with
 recursive projection onto the dataset's body, `projected_sampler`). Evaluation adds MOJO's realism
-metrics (`jaxmotion.realism`).
+metrics (`jaxmotion.eval.realism`).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import functools
 import jax
 import jax.numpy as jnp
 
-from jaxmotion import realism
+from jaxmotion.eval import realism
 from jaxmotion.body.projection import body_fit_fn, init_from_observed, recursive_projection
 from jaxmotion.method import ExtraMetrics, Method, Stage
 from jaxmotion.methods.common import adam, window_batches, zero_velocity
@@ -112,7 +112,7 @@ def projected_sampler(model: mojo.MojoCVAE, cvae_params, q: mojo.MojoQ, q_params
 
 
 def extra_metrics(cfg, ds, params: dict) -> ExtraMetrics:
-    """Returns MOJO's realism metrics per window (`jaxmotion.realism.window_realism`): FSE always; BDF, body
+    """Returns MOJO's realism metrics per window (`jaxmotion.eval.realism.window_realism`): FSE always; BDF, body
     deformation and foot skating where the dataset names the joints or markers they need."""
     return ExtraMetrics(lambda pred, gt: realism.window_realism(pred, gt, ds))
 

@@ -420,7 +420,7 @@ def draw_pictures(cfg, prep, params: dict, workdir, i: int = 0) -> list:
     import matplotlib.pyplot as plt
 
     from jaxmotion.formats.atomic import atomic_path
-    from jaxmotion.viz import draw_pose, frames_to_joints, view_axes
+    from jaxmotion.tools.viz import draw_pose, frames_to_joints, view_axes
 
     from pathlib import Path
 

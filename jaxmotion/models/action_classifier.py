@@ -9,7 +9,7 @@ three differences: the initial hidden state is zero (BeLFusion draws `torch.rand
 so its features of one motion differ between calls), the GRU is one layer of 32 by default
 (BeLFusion: two of 128; evaluation runs it over all K x N predicted futures, and on Bandai-Namco-2
 32 units gave a higher test accuracy than 64, 0.89 against 0.85 after 2000 steps), and it is trained
-by this project on its own datasets' labels (`jaxmotion.action_metrics.dataset_classifier`).
+by this project on its own datasets' labels (`jaxmotion.eval.action_metrics.dataset_classifier`).
 
 This is NOT BeLFusion's Human3.6M classifier (`auxiliar/h36m_classifier.pth`): FID values computed
 with it compare only with other FID values of this project on the same dataset.
@@ -29,7 +29,7 @@ import optax
 from jax.sharding import Mesh
 from jaxtyping import Array, ArrayLike, Float, Int
 
-from jaxmotion import distributed
+from jaxmotion.train import distributed
 from jaxmotion.nn.gru import GRU
 from jaxmotion.train.loop import create_state, make_train_step
 

@@ -27,7 +27,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
 from jaxmotion.dct import dct, idct
-from jaxmotion.distributed import batch_rows
+from jaxmotion.train.distributed import batch_rows
 from jaxmotion.nn.decoder_loop import decoder_loop, decoder_scan
 from jaxmotion.nn.gru import GRU, GRUCell
 from jaxmotion.nn.linear import Dense

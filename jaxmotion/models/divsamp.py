@@ -35,11 +35,11 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
 from jaxmotion.dct import dct, idct
-from jaxmotion.distributed import batch_rows
+from jaxmotion.train.distributed import batch_rows
 from jaxmotion.gumbel import COEFFICIENT_KINDS, sample_coefficients
 from jaxmotion.losses import dlow_diversity, hinge_diversity, kld_normal
 # The skeleton's bones live with the metrics (motion transfer uses them too); kept importable from here.
-from jaxmotion.metrics import bone_lengths, bone_matrix, bone_vectors  # noqa: F401
+from jaxmotion.eval.metrics import bone_lengths, bone_matrix, bone_vectors  # noqa: F401
 from jaxmotion.models.cvae import reparameterise
 from jaxmotion.nn.gcn import GCLStack, GraphConv
 from jaxmotion.nn.batchnorm import RUNNING_VARS, BatchNorm

@@ -50,8 +50,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from jaxmotion.distributed import batch_rows, batch_sum
-from jaxmotion.metrics import pairwise_sq_distances
+from jaxmotion.train.distributed import batch_rows, batch_sum
+from jaxmotion.eval.metrics import pairwise_sq_distances
 from jaxmotion.models.divsamp import bone_lengths, bone_vectors, condition_nodes, from_nodes
 from jaxmotion.nn.gcn import GCLStack, GraphConv
 

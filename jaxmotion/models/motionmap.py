@@ -40,8 +40,8 @@ import numpy as np
 from jax import lax
 from jaxtyping import Array, Bool, Float, Int, Shaped
 
-from jaxmotion.distributed import batch_rows
-from jaxmotion.metrics import MMSets, frame_parents, mm_errors_transferred, motion_transfer, motionmap_mm_sets  # noqa: F401 (re-exported)
+from jaxmotion.train.distributed import batch_rows
+from jaxmotion.eval.metrics import MMSets, frame_parents, mm_errors_transferred, motion_transfer, motionmap_mm_sets  # noqa: F401 (re-exported)
 from jaxmotion.nn.gru import GRU, GRUCell, gru_update
 from jaxmotion.nn.linear import DENSE_INITS, Conv1x1, Dense
 from jaxmotion.nn.mlp import MLP
@@ -106,7 +106,7 @@ class MotionMapConfig:
 
 
 # Motion transfer and MotionMap's multimodal ground truth (appendix A) are evaluation as much as
-# training: they live in `jaxmotion.metrics` (`motion_transfer`, `motionmap_mm_sets`) and are
+# training: they live in `jaxmotion.eval.metrics` (`motion_transfer`, `motionmap_mm_sets`) and are
 # re-exported here.
 
 

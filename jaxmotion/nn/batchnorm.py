@@ -22,7 +22,7 @@ import flax.linen as nn
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from jaxmotion import distributed
+from jaxmotion.train import distributed
 
 RUNNING_VARS = ("unbiased", "biased")
 

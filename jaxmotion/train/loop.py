@@ -8,7 +8,7 @@ before it, with a warning naming both steps. Each checkpoint carries a checksum 
 unreadable too. The data stream is a function of `(seed, step)`, so a
 resumed run sees exactly the batches, and logs exactly the lines, an uninterrupted run would have.
 
-The loop data-parallelises over a one-axis device mesh named "data" (`jaxmotion.distributed`): every
+The loop data-parallelises over a one-axis device mesh named "data" (`jaxmotion.train.distributed`): every
 batch is split over the devices of every process, the state is replicated, and on one device this
 is a no-op. With several processes (`jax.distributed`), every process runs `fit` alike: each places
 its own rows of the global batch, all of them write the checkpoints together (orbax's multi-host
@@ -38,8 +38,8 @@ from jax.flatten_util import ravel_pytree
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from tqdm.auto import tqdm
 
-from jaxmotion import distributed
-from jaxmotion.distributed import data_mesh
+from jaxmotion.train import distributed
+from jaxmotion.train.distributed import data_mesh
 from jaxmotion.errors import CheckpointError
 from jaxmotion.formats.atomic import write_text_atomic
 

@@ -17,7 +17,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxmotion import distributed
+from jaxmotion.train import distributed
 from jaxmotion.errors import CheckpointError
 from jaxmotion.formats.atomic import write_text_atomic
 from jaxmotion.method import Method, Stage

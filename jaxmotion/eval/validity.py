@@ -29,7 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from jaxmotion import realism
+from jaxmotion.eval import realism
 from jaxmotion.models import gsps
 
 

@@ -37,11 +37,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxmotion import experiment, metrics
+from jaxmotion import experiment
+from jaxmotion.eval import metrics
 from jaxmotion.errors import DataError
 from jaxmotion.formats.atomic import atomic_path
-from jaxmotion.predictor import MotionPredictor, run_config
-from jaxmotion.viz import frames_to_joints, view_axes
+from jaxmotion.tools.predictor import MotionPredictor, run_config
+from jaxmotion.tools.viz import frames_to_joints, view_axes
 
 TRUTH_COLOR = "#e6007e"  # magenta: no future (viridis) or multimodal future (orange) is drawn in it
 OBSERVED_COLOR = "#9a9a9a"
@@ -366,7 +367,7 @@ def view_run(
     `experiment.prepare`).
     """
     from jaxmotion.config import load_config
-    from jaxmotion.predictor import load
+    from jaxmotion.tools.predictor import load
 
     for name, v in (("windows", windows), ("k", k), ("max_frames", max_frames)):
         if v < 1:

@@ -313,7 +313,7 @@ def pretrained_path(name: str) -> Path:
     """Returns the file of the shipped model `name` (`PRETRAINED`)."""
     if name not in PRETRAINED:
         raise FileNotFoundError(f"{name}: not a shipped model (shipped: {sorted(PRETRAINED)})")
-    path = Path(__file__).resolve().parent / "pretrained" / PRETRAINED[name]
+    path = Path(__file__).resolve().parent.parent / "pretrained" / PRETRAINED[name]
     if not path.is_file():
         raise FileNotFoundError(f"{path}: the shipped model {name!r} is missing from this installation")
     return path

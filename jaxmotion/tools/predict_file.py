@@ -34,10 +34,10 @@ from jaxmotion.formats.bvh import MAX_JOINTS, Bvh, forward_kinematics, read_bvh
 from jaxmotion.formats.bvh_write import read_end_sites, write_bvh
 from jaxmotion.data.windows import resample  # noqa: F401 (also part of this module's interface)
 from jaxmotion.formats.c3d import read_c3d
-from jaxmotion.joint_maps import match_skeleton
-from jaxmotion.predict_markers import predict_markers
-from jaxmotion.predictor import MotionPredictor
-from jaxmotion.retarget import bvh_from_positions, fit_bvh
+from jaxmotion.tools.joint_maps import match_skeleton
+from jaxmotion.tools.predict_markers import predict_markers
+from jaxmotion.tools.predictor import MotionPredictor
+from jaxmotion.tools.retarget import bvh_from_positions, fit_bvh
 
 
 @dataclasses.dataclass
@@ -258,7 +258,7 @@ def predict_file(
     for i, b in enumerate(fitted):
         written.append(write_bvh(out / f"future_{i:02d}.bvh", b, end_sites))
     if gif:
-        from jaxmotion.animate import animate_futures
+        from jaxmotion.tools.animate import animate_futures
 
         written.append(animate_futures(
             x, kept_f, gt, tuple(lay["parents"]), out / "samples.gif", fps=fps,

@@ -22,8 +22,8 @@ from jaxmotion import experiment
 from jaxmotion.data.datasets import load_bvh_folder
 from jaxmotion.data.types import MotionDataset
 from jaxmotion.errors import DataError
-from jaxmotion.joint_maps import match_skeleton
-from jaxmotion.predictor import MotionPredictor
+from jaxmotion.tools.joint_maps import match_skeleton
+from jaxmotion.tools.predictor import MotionPredictor
 
 
 def folder_as_test_set(

@@ -1,6 +1,6 @@
 """Fit the skeleton body to a C3D recording, gaps included, and draw markers and the fitted skeleton.
 
-    python -m jaxmotion.fit_c3d ../shared/data/vicon-c3d/squat.c3d --out squat_fit.png
+    python -m jaxmotion.tools.fit_c3d ../shared/data/vicon-c3d/squat.c3d --out squat_fit.png
 
 Steps: read the labelled markers (`formats.c3d`); build a skeleton body with the file's markers (the
 `vicon53` layout, on the built-in 21-joint skeleton or on `--skeleton FILE.bvh`); calibrate bone
@@ -120,7 +120,7 @@ def plot_fit(out: dict, png: str | Path, n_frames: int = 4) -> Path:
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(prog="python -m jaxmotion.fit_c3d", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m jaxmotion.tools.fit_c3d", description=__doc__.split("\n\n")[0])
     ap.add_argument("file", help="a .c3d file with labelled markers")
     ap.add_argument("--out", default=None, help="PNG to write (default: FILE stem + _fit.png in the current folder)")
     ap.add_argument("--skeleton", default=None, help="a BVH file whose skeleton to use (default: built-in 21 joints)")

@@ -30,7 +30,7 @@ from jaxmotion.body.markersets import MARKER_SPECS
 from jaxmotion.data.windows import resample
 from jaxmotion.errors import DataError, UsageError
 from jaxmotion.formats.atomic import savez_atomic
-from jaxmotion.predictor import MotionPredictor
+from jaxmotion.tools.predictor import MotionPredictor
 
 MAX_GAP_S = 0.1
 _LEFT_WAIST, _RIGHT_WAIST = ("LFWT", "LBWT", "LASI", "LPSI"), ("RFWT", "RBWT", "RASI", "RPSI")
@@ -220,7 +220,7 @@ def predict_markers(
     )  # fmt: skip
     written = [out / "futures.npz"]
     if gif:
-        from jaxmotion.animate import animate_futures
+        from jaxmotion.tools.animate import animate_futures
 
         written.append(animate_futures(
             x, futures, gt, tuple(lay["parents"]), out / "samples.gif", fps=fps,
