@@ -1,18 +1,22 @@
-"""The `jaxmotion` command: `run`, `train`, `eval`, `sample`.
+"""The `jaxmotion` command: `run`, `train`, `eval`, `sample`, `methods`, `predict`, `export`, `view`.
 
-    jaxmotion run                                   # synthetic data -> CVAE -> DLow -> metrics + PNG
-    jaxmotion run --config experiments/configs/dlow_bandai.py --data ../shared/data/bandai-namco-2
-    jaxmotion train --config CFG [--data PATH] [--workdir DIR] [--resume]
-    jaxmotion train --config CFG --coordinator-address HOST:PORT --num-processes N --process-id I   # in each of N processes
-    jaxmotion eval --config CFG [--data PATH] [--workdir DIR]
-    jaxmotion eval --model bandai --data MY_BVH_FOLDER [--workdir DIR]   # a shipped or trained model, every clip a test clip
-    jaxmotion sample --config CFG [--workdir DIR] --window 3 --k 50 --method dlow
-    jaxmotion sample --config experiments/configs/gsps_synthetic.py --window 208 --fix-part lower   # one lower body, 10 upper bodies
-    jaxmotion methods                               # the registered methods and their stages' settings type
-    jaxmotion predict --model bandai clip.bvh --out DIR     # your own motion, the shipped model (no training)
-    jaxmotion predict RUN_DIR --input clip.bvh [--frame F] [--k K] [--method M] [--joint-map FILE] --out DIR
-    jaxmotion export RUN_DIR --out model.msgpack             # one inference-only file for load / predict --model
-    jaxmotion view RUN_DIR [--out FILE.html] [--windows N] [--k K] [--method M]   # a 3-D viewer page (plotly)
+Examples (`jaxmotion COMMAND --help` lists every option):
+
+```text
+jaxmotion run                                   # synthetic data -> CVAE -> DLow -> metrics + PNG
+jaxmotion run --config experiments/configs/dlow_bandai.py --data ../shared/data/bandai-namco-2
+jaxmotion train --config CFG [--data PATH] [--workdir DIR] [--resume]
+jaxmotion train --config CFG --coordinator-address HOST:PORT --num-processes N --process-id I   # in each of N processes
+jaxmotion eval --config CFG [--data PATH] [--workdir DIR]
+jaxmotion eval --model bandai --data MY_BVH_FOLDER [--workdir DIR]   # a shipped or trained model, every clip a test clip
+jaxmotion sample --config CFG [--workdir DIR] --window 3 --k 50 --method dlow
+jaxmotion sample --config experiments/configs/gsps_synthetic.py --window 208 --fix-part lower   # one lower body, 10 upper bodies
+jaxmotion methods                               # the registered methods and their stages' settings type
+jaxmotion predict --model bandai clip.bvh --out DIR     # your own motion, the shipped model (no training)
+jaxmotion predict RUN_DIR --input clip.bvh [--frame F] [--k K] [--method M] [--joint-map FILE] --out DIR
+jaxmotion export RUN_DIR --out model.msgpack             # one inference-only file for load / predict --model
+jaxmotion view RUN_DIR [--out FILE.html] [--windows N] [--k K] [--method M]   # a 3-D viewer page (plotly)
+```
 """
 
 from __future__ import annotations
@@ -133,7 +137,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _distributed_flags(s: argparse.ArgumentParser) -> None:
-    g = s.add_argument_group("many processes", "jax.distributed: run the same command in every process (README 'Training on many devices')")
+    g = s.add_argument_group("many processes", "jax.distributed: run the same command in every process (docs/pages/distributed.md)")
     g.add_argument("--distributed", action="store_true",
                    help="start jax.distributed; the settings below that are not given are detected (SLURM, Open MPI, Cloud TPU)")
     g.add_argument("--coordinator-address", default=None, metavar="HOST:PORT", help="process 0's address (default: $JAX_COORDINATOR_ADDRESS)")

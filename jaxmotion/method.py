@@ -10,7 +10,7 @@ and hand its stages to the one stage runner (`jaxmotion.train.runner`), which tr
 resumes and restores every method the same way. A package of your own registers its methods by
 calling `register` on import, or through the `jaxmotion.methods` entry-point group (an entry point
 that loads a `Method`), or a config file can call `register` before `get_config()` returns.
-README "Adding a method" walks through DLow.
+docs/pages/add-method.md walks through DLow.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 JAX runs one program per process (one process per host, or per GPU), each addressing its own
 devices; a computation over arrays that span every process's devices runs on all of them at once
-(README "Training on many devices"). jaxmotion data-parallelises over a one-axis mesh named "data"
+(docs/pages/distributed.md). jaxmotion data-parallelises over a one-axis mesh named "data"
 over every device of every process: the batch is split along its leading axis, parameters and
 optimiser state are replicated. The train step (`train.loop.make_train_step`) is written per device
 (`jax.shard_map` over "data"): each device computes the gradient of its rows' loss in full, then one
