@@ -1,4 +1,4 @@
-"""Evaluation speed on Bandai-Namco-2, against issue 18's two targets: compile time and run time apart, metric values shown.
+"""Evaluation speed on Bandai-Namco-2, against two targets (each part under 30 s once compiled): compile time and run time apart, metric values shown.
 
     flock /tmp/jaxmotion-heavy.lock python benchmarks/eval_speed.py      # both targets (quiet machine: about 3 minutes)
     python benchmarks/eval_speed.py --only eval                          # (a) alone

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The GPU check of issue 17. UNTESTED: no GPU was at hand when it was written; run it whenever one is.
+# The GPU check: the tests, run.py and scaling.py on a GPU machine. UNTESTED: no GPU was at hand when it was written; run it whenever one is.
 #
 #   bash benchmarks/gpu.sh [OUT_DIR]          # default: benchmarks/results/gpu-<date>
 #
@@ -10,7 +10,7 @@
 #                      the CUDA jax installed)
 #   OUT/scaling.md     benchmarks/scaling.py --platform gpu: 1, 2, 4, ... GPUs in one process, and
 #   OUT/scaling.json   1 and 2 processes (one GPU each) when there are two GPUs or more
-# Paste OUT/scaling.md into benchmarks/README.md ("Scaling", on GPU).
+# Commit OUT/scaling.md under benchmarks/results/ and add its line to benchmarks/results/README.md.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out="${1:-benchmarks/results/gpu-$(date +%Y-%m-%d)}"

@@ -47,7 +47,7 @@ class Settings:
     # The machine-speed probe of `measure`: a fixed n x n product of the worker's own framework after each
     # call of a case whose call takes at least probe_min_call_s, recorded with the case; probe_n = 0: none.
     # slow_factor > 1 also leaves out calls whose probe was that much slower than the fastest (the gate;
-    # off by default: benchmarks/results/README.md, "Slow stretches of the machine", says where it misfires).
+    # off by default: benchmarks/results/machine.md says where it misfires).
     probe_n: int = 768
     slow_factor: float = 0.0
     probe_min_call_s: float = 0.02
@@ -193,7 +193,7 @@ def measure(run: Callable[[], object], warmup: int, repeats: int, probe: Callabl
     so a reader can see whether the machine ran at full speed during the case. On the 2-core cloud
     CPU this benchmark runs on, the same 768^3 product took 2.1 ms in one jax worker and 4.0 ms in
     another, and a 1024^3 product doubled its time for stretches of 10-50 calls within one process
-    (benchmarks/results/README.md, "Slow stretches of the machine"). With `slow_factor` > 1, a call whose
+    (benchmarks/results/machine.md). With `slow_factor` > 1, a call whose
     probe took more than `slow_factor` times the fastest is not counted, and calls continue until
     `repeats` are counted or `max_calls_factor * repeats` were made. Short calls are not probed one by
     one (the probe would evict their data from the caches and take longer than the call): the case is

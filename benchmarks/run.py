@@ -153,8 +153,8 @@ def probe_gflops(row: dict, s: Settings) -> float | None:
 
     The median of the probes after each call (calls of `probe_min_call_s` or more) or of the two
     bracketing the case (shorter calls): a record of the machine's state around the case. On the
-    2-core cloud CPU of benchmarks/results/README.md it is ~450 GFLOP/s (the measured peak) or about half, and
-    it does not track every case's speed: in the three runs of 2026-12-05 five cases ran faster than
+    2-core AMD EPYC of benchmarks/results/targets.md it is ~450 GFLOP/s (the measured peak) or about half, and
+    it does not track every case's speed: in the three runs of the generated tables five cases ran faster than
     the probe around them (up to 136% of it), so it is shown, not used to judge a target.
     """
     ms = row.get("jax", {}).get("probe_ms_median")

@@ -7,7 +7,7 @@
 # joints rebuilt from the root: `metrics.motion_transfer`, which is what the forward kinematics of
 # `retarget.fit_bvh`'s rotations gives when every joint is predicted). Also reports how far the raw
 # bone lengths are from the observed ones. Runtime: ~2 min per DLow run on Bandai-Namco-2 (2 cores; 40 s per predictor).
-# Results: experiments/results/README.md ("Futures on the input's skeleton").
+# Results: experiments/results/body.md; the table: docs/pages/results.md ("Futures put on the input's skeleton").
 from __future__ import annotations
 
 import argparse

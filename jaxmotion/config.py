@@ -82,7 +82,7 @@ class Config:
     # The networks' weight products (jaxmotion/nn/precision.py): "float32" (default), or "bf16":
     # bfloat16 operands with float32 accumulation, everything else float32. Faster only on a CPU with
     # bfloat16 instructions (or a GPU / TPU); its effect on speed and on the metrics is measured in
-    # benchmarks/README.md. GSPS's flow prior, MotionMap and the metrics keep float32 always.
+    # benchmarks/results/bf16.md. GSPS's flow prior, MotionMap and the metrics keep float32 always.
     precision: str = "float32"
     # Gradient accumulation: each device takes its share of every batch in `micro_batches` equal
     # micro-batches, one after another, and the optimiser steps once on their mean gradient (one

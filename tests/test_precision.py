@@ -43,7 +43,7 @@ def test_bf16_product_rounds_the_operands_and_accumulates_in_float32():
 
 @pytest.mark.parametrize("precision", P.PRECISIONS)
 def test_weight_products_of_many_axes_are_2d_products_with_the_same_gradients(precision):
-    # A 3-D x is multiplied as its 2-D view, so both gradient products are 2-D (benchmarks/results/README.md,
+    # A 3-D x is multiplied as its 2-D view, so both gradient products are 2-D (benchmarks/results/optimisations.md,
     # "Weight products on 2-D views"): from the 3-D form XLA:CPU copies the cotangent into a transposed layout.
     x = jax.random.normal(jax.random.key(0), (4, 6, 9))
     w = jax.random.normal(jax.random.key(1), (9, 5))
@@ -84,7 +84,7 @@ def test_node_major_adjacency_product_and_its_gradients_are_the_einsums(monkeypa
 
 @pytest.mark.parametrize("shape", [(4, 1024, 256), (4, 8, 32)])  # M x F = 2^18 (two-axis form), 2^8 (2-D form)
 def test_node_major_adjacency_gradient_takes_the_form_its_size_calls_for(shape):
-    # Lowered only, not run: which contraction dA is written as (benchmarks/results/README.md, "The adjacency gradient").
+    # Lowered only, not run: which contraction dA is written as (benchmarks/results/optimisations.md, "The adjacency gradient").
     a = jax.ShapeDtypeStruct((4, 4), jnp.float32)
     h = jax.ShapeDtypeStruct(shape, jnp.float32)
     grad = jax.grad(lambda a, h: jnp.sum(P.node_matmul(a, h) ** 2), argnums=(0, 1))

@@ -13,7 +13,7 @@
 # CMD 45.76, FID 2.162, against zero-velocity ADE 0.4328, FDE 0.4844: at this budget the model is worse
 # than holding the last pose, its samples mostly broken bodies (ADE-m 1.06). The loss had not flattened
 # (0.78 at step 50, 0.077 at 2,450, 0.032 at 5,450 on a decaying lr); the 15-coefficient DCT itself
-# costs 0.023 m of ADE on the true futures, so the error is the denoiser's (experiments/results/README.md, "Diffusion").
+# costs 0.023 m of ADE on the true futures, so the error is the denoiser's (experiments/results/diffusion.md).
 from jaxmotion.config import Config
 from jaxmotion.models.diffusion import DiffusionConfig
 

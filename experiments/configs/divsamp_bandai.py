@@ -4,7 +4,7 @@
 # Runtime: 690-1368 s per seed for `jaxmotion run` on the 2-core AMD EPYC (train ~8-18 min, eval ~3 min;
 # the spread is other work sharing the cores).
 # Measured 2026-12-01 with the release's initialisation, test-time noise and BatchNorm statistics
-# (issue 11), K = 50 on 1,609 test windows, `jaxmotion run ... --seed S`:
+# (as the release does), K = 50 on 1,609 test windows, `jaxmotion run ... --seed S`:
 #   seed      APD    ADE    FDE    MMADE  MMFDE     (its CVAE from N(0, I): APD / ADE)
 #   0         1.812  0.2046 0.2538 0.2809 0.2854    1.623 / 0.2089
 #   1         1.727  0.1908 0.2493 0.2824 0.2967    1.330 / 0.1919
@@ -12,7 +12,7 @@
 #   mean      1.725  0.1979 0.2553 0.2849 0.2961    (sd 0.088 / 0.0069 / 0.0067 / 0.0058 / 0.0103)
 #   authors'  1.568  0.2180 0.2670 0.3037 0.3150    (their code on the same windows and budget, one seed)
 # Every seed is more accurate than the authors' run on ADE, FDE and MMADE; APD is 10% higher.
-# Details and the comparison with DLow: the DivSamp section of experiments/results/README.md.
+# Details and the comparison with DLow: experiments/results/divsamp.md.
 """DivSamp on Bandai-Namco-2 (15 -> 60 frames at 30 fps, 20 joints).
 
 Architecture: the paper's (supp. Tables 3-4). Loss weights: Bandai-Namco-2 is not in the paper;

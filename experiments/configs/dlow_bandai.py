@@ -10,7 +10,7 @@
 # the spread is other work sharing the cores); 1,037 s for seed 3 on the 2-core Intel Xeon (CVAE 437 s,
 # Q 438 s, eval ~93 s).
 #
-# Measured with the references' initialisation (issue 11: dense layers as PyTorch nn.Linear), seeds 0-2
+# Measured with the references' initialisation (dense layers as PyTorch nn.Linear), seeds 0-2
 # on 2026-12-01 (2-core AMD EPYC), seeds 3-4 on 2026-12-02 (2-core Intel Xeon),
 # K = 50, 1,609 windows, metres; `jaxmotion run ... --seed S`, `experiments/results_table.py`:
 #   method          seed  APD     ADE     FDE     MMADE   MMFDE   ADE-m
@@ -34,9 +34,9 @@
 #   DLow            9     1.180   0.3350  0.3828  0.3654  0.3958  0.3642
 #   DLow mean +- sd       1.275   0.3084  0.3524  0.3472  0.3721  0.3461
 #     (seeds 0-9)         +-0.114 +-0.030 +-0.036 +-0.019 +-0.027 +-0.021
-#   authors' code, the same windows, batch streams and budget (issue 11's harness, float32), seeds 0-4:
+#   authors' code, the same windows, batch streams and budget (a harness running it, float32), seeds 0-4:
 #     ADE 0.2803 0.3040 0.2992 0.2870 0.3277, mean 0.2996 +- 0.018; FDE mean 0.3463 +- 0.022;
-#     MMADE mean 0.3424 +- 0.011 (issue 11's first run: ADE 0.2927 FDE 0.3300 MMADE 0.3374).
+#     MMADE mean 0.3424 +- 0.011 (its first run: ADE 0.2927 FDE 0.3300 MMADE 0.3374).
 # Over ten seeds jaxmotion is 2.9% (ADE), 1.8% (FDE), 1.4% (MMADE) above the authors' five-seed means,
 # inside the seed noise (ADE: Welch p = 0.50; seeds 0-4 alone: +5.5%, seeds 5-9 alone: +0.4%). The CVAE
 # lands in one of two basins: ADE ~0.27-0.30 with APD ~1.3-1.4, or ADE ~0.33-0.34 with APD ~1.17-1.2.
@@ -46,20 +46,20 @@
 # own draws of those seeds gave 0.3332 and 0.3349 and the authors' code 0.2803 and 0.2992; from their
 # seed-4 weights (their code: the worse basin, 0.3266) jaxmotion ends in the worse basin too (0.3367).
 # jaxmotion's draws fell there at 5 of 10 seeds, the authors' at 1 of 5 (Fisher p = 0.58): chance, not
-# code (experiments/results/README.md, "The default job and Bandai-Namco-2"). The Q network barely moves off its CVAE (diversity term 0.98-0.99 of its maximum at
+# code (experiments/results/dlow.md). The Q network barely moves off its CVAE (diversity term 0.98-0.99 of its maximum at
 # the end: d_scale 100 is tuned for Human3.6M's 100-frame futures; Bandai's pairwise distances are
 # ~1.2 m, so exp(-d^2/100) ~ 1).
-# With flax's initialisation (before issue 11) the same config gave APD 2.225, ADE 0.3523 (seed 0).
+# With flax's initialisation (before the references' initialisation) the same config gave APD 2.225, ADE 0.3523 (seed 0).
 #
 # Training-window sampler (Config.train_sampler), seed 0: "windows" (every window equally likely,
 # PROTOCOL sec. 3) DLow ADE 0.3336 MMADE 0.3621; "sequences" (the release: a sequence uniformly,
 # then a start) 0.3329 / 0.3603. The difference is 20x smaller than the seed sd, so the default
 # stays "windows", which also uses sequences of exactly t_total frames.
 #
-# Why beta = 0.3 (the paper uses 0.1 with ~39k CVAE steps; we have 2k): measured before issue 11
+# Why beta = 0.3 (the paper uses 0.1 with ~39k CVAE steps; we have 2k): measured before the references' initialisation
 # (flax initialisation) on this budget, beta 0.1 gave APD 14.8 with most samples broken bodies
 # (ADE-m 1.95) and beta 1.0 collapsed the KL to 0.07 nats. With the PyTorch initialisation the
-# CVAE's KL ends at 0.5-1.2 nats at beta 0.3 (seeds 0-2); see experiments/results/README.md for beta 0.1.
+# CVAE's KL ends at 0.5-1.2 nats at beta 0.3 (seeds 0-2); see experiments/results/dlow.md for beta 0.1.
 from jaxmotion.config import Config
 from jaxmotion.models.dlow import CVAEConfig, DLowConfig, QConfig
 

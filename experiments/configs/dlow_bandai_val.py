@@ -10,7 +10,7 @@
 #   humaneva  20, the release's HumanEva-I value, dlow_bandai_val_humaneva.py
 # The three share one CVAE (the Q network's d_scale does not reach the CVAE stage): the rule run
 # trains it, the others start from a copy of its `cvae/` folder with --resume.
-# Sweep results: experiments/results/README.md, "DLow: d_scale on the validation split".
+# Sweep results: not run yet (experiments/results/diversity.md).
 import dataclasses
 from pathlib import Path
 

@@ -18,7 +18,7 @@
 # (about 1.5 s per step alone on the machine), evaluation and report 2.5 min, 3,748 s in all. K = 50 over
 # the 1,609 test windows: APD 5.045, ADE 0.2228, FDE 0.2498, MMADE 0.2750, MMFDE 0.2761, ADE-m 0.623;
 # 1.5% of frames outside an angle bound, prior NLL -58.6 nats per frame, BDF 0.092 m, CMD 8.23, FID 0.293
-# (experiments/results/README.md, GSPS section). The learning curve was still moving at step 2000.
+# (experiments/results/gsps.md). The learning curve was still moving at step 2000.
 from jaxmotion.config import Config
 from jaxmotion.models.gsps import GSPSConfig
 

@@ -11,7 +11,7 @@
 # per step quiet (~2.5 h; 1.3 s per step on a 2-core Xeon, ~7.4 h). Result (all 1,609 windows, K = 50):
 # APD 6.091, ADE 0.2527, FDE 0.2757, MMADE 0.2947; 0.05% of frames outside an angle bound; more diverse
 # than DLow's long run (2.874) but less accurate (ADE 0.1617), and its curve had not flattened (last
-# fifth of the steps: APD +7.2%, ADE -4.5%). experiments/results/README.md, "Long budget: GSPS".
+# fifth of the steps: APD +7.2%, ADE -4.5%). experiments/results/gsps.md.
 from jaxmotion.config import Config
 from jaxmotion.models.gsps import GSPSConfig
 

@@ -1,6 +1,6 @@
 # flock /tmp/jaxmotion-heavy.lock jaxmotion run --config experiments/configs/gsps_bandai_no_angle.py --data ../shared/data/bandai-namco-2 --workdir ~/jaxmotion-runs/gsps_bandai_no_angle
 #
-# GSPS ablation (issue 12; the paper's supplementary Table 2): gsps_bandai.py without the angle-limit loss (lambda_angle 100 -> 0),
+# GSPS ablation (the paper's supplementary Table 2): gsps_bandai.py without the angle-limit loss (lambda_angle 100 -> 0),
 # everything else identical (budget, seed, data, pseudo ground truth). Compared with gsps_bandai.py by
 # experiments/validity_table.py (bone deformation, angle violations, pose-prior NLL) and the end-pose
 # picture of experiments/compare_methods.py.

@@ -5,7 +5,7 @@
 # nk1 x nk2 = 10 x 10 samples per window and a 256-wide GCN): prior 400 steps x 1024 frames,
 # generator 2000 steps x 8 windows x (5 x 5) samples, GCN width 128. Loss weights: the release's
 # Human3.6M values (the synthetic skeleton has Human3.6M's 17-joint layout).
-# Runtime and result: see experiments/results/README.md ("GSPS").
+# Runtime and result: see experiments/results/gsps.md.
 from jaxmotion.config import Config
 from jaxmotion.models.gsps import GSPSConfig
 

@@ -8,7 +8,7 @@
 #   mojo_prior  APD  7.72 ADE 1.034 FDE 1.949 MMADE 1.074 MMFDE 1.954 BDF 0.128 m
 #   zero_vel.   APD  0    ADE 4.102 FDE 7.796
 # 128 windows, same latents: mojo BDF 0.165 m, head/lower torso 154/142 mm; mojo_proj BDF 3e-7 m, 0/0 mm,
-# APD 26.9 -> 20.0, ADE 0.600 -> 0.665 (experiments/results/README.md, "MOJO with recursive projection").
+# APD 26.9 -> 20.0, ADE 0.600 -> 0.665 (experiments/results/body.md).
 """MOJO on Bandai-Namco-2 as body-surface markers: the Bandai skeleton body carrying the `bandai`
 (CMU-41) markers, driven by every clip (`jaxmotion.data.markers.load_bandai_markers`); global
 marker positions in the canonical frame of each window's first frame (PROTOCOL sec. 4), D = 123.

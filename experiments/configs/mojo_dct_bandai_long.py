@@ -2,12 +2,12 @@
 # python experiments/plot_curves.py ~/jaxmotion-runs/long/mojo_dct_s0
 #
 # MOJO-DCT (MOJO without the latent DCT space: one 128-d latent vector, plain KLD weight 0.1, the
-# release's `amass_vanilla_nsamp50.yml`) on Bandai-Namco-2 at the long budget of issue 14: 10x the shared
+# release's `amass_vanilla_nsamp50.yml`) on Bandai-Namco-2 at the long budget: 10x the shared
 # budget of mojo_dct_bandai.py (CVAE 20,000 steps x 64, DLow 4,000 steps x 16), everything else as
 # there, so that it pairs with mojo_bandai_long.py for MOJO's claim "the latent DCT space is more diverse
 # than a vector latent". Learning curves every 500 steps (K = 50, 200 fixed test windows).
 # Runtime and result (seed 0, 2026-12-02, 2-core Intel Xeon): 91 min; K = 50 APD 0.260 (its CVAE 0.360), ADE 0.170:
-# the vector latent collapses (KL ~0.001 nats from step 2,000). experiments/results/README.md, "Long budget: MOJO-DCT".
+# the vector latent collapses (KL ~0.001 nats from step 2,000). experiments/results/mojo.md.
 from jaxmotion.config import Config
 from jaxmotion.models.mojo import MojoConfig
 
@@ -17,7 +17,7 @@ def get_config() -> Config:
         name="mojo_dct_bandai_long",
         method="mojo",
         dataset="../shared/data/bandai-namco-2",
-        eval_k=(50, 5),  # issue 14 asks for K = 50 and K = 5 tables (DLow and MOJO train a Q network per K)
+        eval_k=(50, 5),  # K = 50 and K = 5 tables (DLow and MOJO train a Q network per K)
         ckpt_every=500,
         curve_every=500,
         method_config=MojoConfig(

@@ -1,6 +1,6 @@
 # jaxmotion run --config experiments/configs/mojo_dct_synthetic.py --workdir /tmp/runs/mojo_dct_synthetic
 # Budget as on Bandai: CVAE 2000 steps x 64, DLow 400 steps x 16 with K = 50.
-# Runtime and result: not measured (the measured MOJO runs are the Bandai ones, experiments/results/README.md).
+# Runtime and result: not measured (the measured MOJO runs are the Bandai ones, experiments/results/mojo.md).
 """MOJO-DCT on the synthetic data: MOJO without the latent DCT space (one 128-d latent vector, plain
 KLD with weight 0.1; the release's `amass_vanilla_nsamp50.yml`), same loss and residual decoder,
 DLow on the one vector."""

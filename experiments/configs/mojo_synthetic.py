@@ -1,7 +1,7 @@
 # jaxmotion train --config experiments/configs/mojo_synthetic.py --workdir /tmp/runs/mojo_synthetic
 # jaxmotion eval  --config experiments/configs/mojo_synthetic.py --workdir /tmp/runs/mojo_synthetic
 # Budget as on Bandai: CVAE 2000 steps x 64, per-band DLow 400 steps x 16 with K = 50 (DLow-style lr schedule).
-# Runtime and result: not measured (the measured MOJO runs are the Bandai ones, experiments/results/README.md).
+# Runtime and result: not measured (the measured MOJO runs are the Bandai ones, experiments/results/mojo.md).
 """MOJO on the built-in synthetic data (15 -> 60 frames, D = 48): latent DCT (60 bands x 16),
 L1 + 3 x velocity L1 + robust KLD (Eq. (1)), residual decoder; DLow on the lowest 12 bands.
 

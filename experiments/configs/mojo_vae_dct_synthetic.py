@@ -1,6 +1,6 @@
 # jaxmotion run --config experiments/configs/mojo_vae_dct_synthetic.py --workdir /tmp/runs/mojo_vae_dct_synthetic
 # Budget as on Bandai: CVAE 2000 steps x 64, DLow 400 steps x 16 with K = 50.
-# Runtime and result: not measured (the measured MOJO runs are the Bandai ones, experiments/results/README.md).
+# Runtime and result: not measured (the measured MOJO runs are the Bandai ones, experiments/results/mojo.md).
 """VAE+DCT and VAE+DCT+L on the synthetic data: DLow's CVAE objective (squared error, jump loss
 lambda_v = 1000, KLD weight 0.1) and decoder without residual output, with MOJO's latent DCT
 space (60 bands x 16). One trained CVAE gives both rows: "mojo_prior" = VAE+DCT (N(0, I) in every

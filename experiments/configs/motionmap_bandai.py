@@ -10,7 +10,7 @@
 # Runtime (seed 0, 2-core AMD EPYC shared with other work): 2,407 s (autoencoder 280 s, heatmap ~31 min).
 # Result (1,609 test windows): K = 7 ADE 0.3103, FDE 0.4079, APD 1.015; 1.48 peaks per window on average;
 # under MotionMap's protocols (experiments/motionmap_tables.py) MMADE 0.3634 (K = 7, training windows)
-# and 0.3223 (K = 5, test windows), behind DivSamp (0.3369, 0.2713): experiments/results/README.md, "MotionMap".
+# and 0.3223 (K = 5, test windows), behind DivSamp (0.3369, 0.2713): experiments/results/motionmap.md.
 import os
 
 from jaxmotion.config import Config

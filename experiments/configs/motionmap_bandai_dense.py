@@ -6,8 +6,7 @@
 # before the 64-member cap, and the release's K protocol beside ours (`motionmap_all_peaks`: the
 # zero-velocity future and every peak; `distinct_futures` - 1 is its ANP).
 # Why: the ground-truth maps of motionmap_bandai.py's map have 3.19 peaks per test window (>= 5 in
-# 20.9%); this map's have 7.27 (>= 5 in 87.1%) (experiments/results/README.md, "MotionMap: how multimodal its
-# training targets are"; experiments/motionmap_target_peaks.py).
+# 20.9%); this map's have 7.27 (>= 5 in 87.1%) (experiments/results/motionmap.md; experiments/motionmap_target_peaks.py).
 # Runtime and result: not measured yet.
 import dataclasses
 from pathlib import Path

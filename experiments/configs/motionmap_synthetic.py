@@ -5,7 +5,7 @@
 # sequences (3,000 windows); their MotionMap multimodal ground truth at the dataset's 0.015 m threshold
 # (last three observed frames, motion-transferred) is exact here: every member has the same phase and
 # current action as its window (checked on seed 0), and a set holds 5.5 of the 6 next actions on average.
-# Runtime and result: see experiments/results/README.md ("MotionMap").
+# Runtime and result: see experiments/results/motionmap.md.
 from jaxmotion.config import Config
 from jaxmotion.models.motionmap import MotionMapConfig
 

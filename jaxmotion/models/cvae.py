@@ -89,7 +89,7 @@ class GRUCVAE(nn.Module):
     # matrix products and recomputes the gates' elementwise work (jax.checkpoint_policies.dots_saveable)
     # instead of stacking every intermediate of every step (issue 18's "scan residual copies"). Same numbers; DLow's and
     # MOJO's second-stage steps (the gradient through the K = 50 decoders) measured 1.12x faster,
-    # the CVAE steps unchanged (`python benchmarks/ab.py --ab decoder_remat`; benchmarks/README.md).
+    # the CVAE steps unchanged (`python benchmarks/ab.py --ab decoder_remat`; benchmarks/results/optimisations.md).
     # The same policy on the encoders' GRU (nn/gru.py) measured slower, so it is not used there.
     decoder_remat: bool = True
     # lax.scan's `unroll` of the differentiated decoder loop (decoder_backward="autodiff"): same
@@ -99,7 +99,7 @@ class GRUCVAE(nn.Module):
     # The decoder loop's backward pass: "batched" (default) computes each weight's gradient as one
     # product over all steps after the loop (nn/decoder_loop.py; float32 only, bf16 falls back);
     # "autodiff" differentiates the loop (a product and an accumulation per step and weight, with
-    # decoder_remat / decoder_unroll above). Same numbers up to summation order; benchmarks/README.md,
+    # decoder_remat / decoder_unroll above). Same numbers up to summation order; benchmarks/results/optimisations.md,
     # "Batched weight gradients of the decoder loop", has the A/B.
     decoder_backward: str = "batched"
 

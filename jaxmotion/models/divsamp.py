@@ -306,7 +306,7 @@ def decode_k(cvae: DivSampCVAE, variables, cx: Float[ArrayLike, "b j c"], z: Flo
     `jax.vmap` over K computes the same numbers more slowly on XLA:CPU (the batched axis then sits
     in front of the GCL stacks' node-major layout, nn/gcn.py): folded, the sampler's training step
     measured 1.22x faster, K = 50 sampling 1.16x-1.26x and the K = 1000 evaluation 31 -> 27 s
-    (benchmarks/README.md, "DivSamp's K futures folded into the batch").
+    (benchmarks/results/optimisations.md, "DivSamp's K futures folded into the batch").
     """
     b, k = z.shape[:2]
     nodes = cvae.apply(variables, jnp.repeat(cx, k, axis=0), z.reshape((b * k,) + z.shape[2:]), train=False, method=DivSampCVAE.decode)

@@ -592,7 +592,7 @@ def generator_loss(
     `|a|^2 + |m|^2 - 2 a.m`, one batched product, both sides taken relative to the true future first
     (norms of the order of the distances, little cancellation); "pairwise" as the release does, by
     differencing every (sample, pseudo future) pair, a (b, K, M, t_pred, D) array. The same values to
-    float32 rounding (`tests/test_gsps.py`); benchmarks/README.md, "GSPS's best-of-K errors", has the A/B.
+    float32 rounding (`tests/test_gsps.py`); benchmarks/results/optimisations.md, "GSPS's best-of-K errors", has the A/B.
     """
     w, mm, mm_mask = batch["window"], batch["mm"], batch["mm_mask"]
     b, t_total, _ = w.shape

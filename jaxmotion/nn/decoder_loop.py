@@ -10,7 +10,7 @@ loop, one small product per step and weight (`x_t^T ct_t`, 64 rows at batch 64) 
 accumulator, for every one of the horizon's steps. Here the backward loop only carries the
 activations' cotangents and stacks each product's output cotangent; after the loop each weight's
 gradient is one `(T * b, in)^T (T * b, out)` product over the saved inputs. The same numbers up to
-float32 summation order (`tests/test_dlow.py`); measured in benchmarks/README.md ("Batched weight
+float32 summation order (`tests/test_dlow.py`); measured in benchmarks/results/optimisations.md ("Batched weight
 gradients of the decoder loop").
 
 float32 only (bf16 takes `decoder_scan`, jax differentiating the same `decoder_step` with its bf16 custom

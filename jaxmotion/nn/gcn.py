@@ -109,7 +109,7 @@ class GCLStack(nn.Module):
     default): one transpose to `(J, ..., F)` on the way in and one on the way out, so every
     adjacency product is a plain `(J, J) @ (J, rest)` product. The batch-major layout computes
     `einsum("ij,...jo->...io")`, which XLA's CPU backend runs with a transpose of its operand and
-    result around every layer (measured in benchmarks/README.md, "Node-major graph convolutions").
+    result around every layer (measured in benchmarks/results/optimisations.md, "Node-major graph convolutions").
     Both layouts have the same parameters and statistics, so checkpoints load in either.
     """
 

@@ -65,7 +65,7 @@ class Conv1x1(nn.Module):
     one `(pixels, in) x (in, out)` product rather than a convolution: with MotionMap's 8 channels on a
     128 x 128 map XLA:CPU's convolution and its filter gradient made the whole heatmap network's
     gradient 1.9x slower (measured with another run sharing the cores; the quiet A/B of the heatmap
-    step is in benchmarks/README.md, "MotionMap's heatmap stage").
+    step is in benchmarks/results/optimisations.md, "MotionMap's heatmap stage").
     """
 
     features: int

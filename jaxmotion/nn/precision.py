@@ -5,7 +5,7 @@ before this option existed. "bf16" rounds both operands of each weight product t
 mantissa) and accumulates the sum in float32 (`preferred_element_type`), the products' result staying
 float32; parameters, optimiser state, activations, nonlinearities, BatchNorm, losses and metrics stay
 float32. On a CPU with bfloat16 instructions (`avx512_bf16`, `amx_bf16`) XLA's bfloat16 products run
-at up to about twice the float32 rate (this machine's measured peaks: benchmarks/README.md); on a CPU
+at up to about twice the float32 rate (measured peaks: docs/pages/benchmarks.md); on a CPU
 without them they are emulated and slower. Layers whose numbers are sensitive to rounding keep
 float32 whatever the option: GSPS's flow prior (its log-determinant and exact inverse), the metrics
 and the action classifier behind CMD / FID.
@@ -95,7 +95,7 @@ def matmul(x: Float[ArrayLike, "... i"], w: Float[ArrayLike, "i o"], precision: 
     same, but the weight gradient `x^T ct` is then a 2-D product: from a 3-D `x`, jax's transpose rule
     contracts two leading axes, and XLA:CPU canonicalises that dot by copying the cotangent into a
     transposed layout first (one 1.3 MB copy per GCN layer in DivSamp's CVAE step). Measured A/B in
-    one process (benchmarks/README.md, "Weight products on 2-D views"): DivSamp's CVAE step 1.15x-1.22x,
+    one process (benchmarks/results/optimisations.md, "Weight products on 2-D views"): DivSamp's CVAE step 1.15x-1.22x,
     GSPS's generator step 1.14x, DLow's Q step 1.13x faster, the other cases unchanged.
     """
     x = jnp.asarray(x)
@@ -124,7 +124,7 @@ def graph_matmul(a: Float[ArrayLike, "j j"], h: Float[ArrayLike, "... j o"], pre
 # transposed-operand form is the faster one (16k: 0.15 vs 0.27 ms; 205k: 2.8-3.6 vs 4.2-4.3 ms),
 # and DivSamp's CVAE step (16k) was 5% slower with the two-axis form, so it is used from
 # `NODE_GRAD_TWO_AXIS_MIN` on (GSPS's generator at the release's sizes: 409,600). dH = A^T ct is
-# written to come out node-major. benchmarks/README.md, "The adjacency gradient", has the A/B.
+# written to come out node-major. benchmarks/results/optimisations.md, "The adjacency gradient", has the A/B.
 # bfloat16 keeps the 2-D product (`_matmul_bf16`): XLA:CPU has no bf16 x bf16 -> f32 kernel for the
 # multi-axis forms (DotThunk: UNIMPLEMENTED).
 NODE_GRAD_TWO_AXIS_MIN = 2**18

@@ -5,7 +5,7 @@ which serves large requests, above a threshold of at most 32 MB, by a fresh `mma
 then maps it in one 4 KiB page fault at a time while the first kernel writes it. For the library's
 large arrays this costs more than the arithmetic: a 32 MB elementwise op ran 4x slower than memory allows (8,193 page faults a call),
 MotionMap's heatmap step took 146,000 page faults, and more time in them than in its products
-(benchmarks/README.md, "Huge pages"). Where the kernel's transparent-huge-page mode is `madvise`
+(benchmarks/results/memory.md). Where the kernel's transparent-huge-page mode is `madvise`
 (Debian's and Ubuntu's default), glibc >= 2.35 advises huge pages for its own mappings when started
 with `GLIBC_TUNABLES=glibc.malloc.hugetlb=1`: 2 MiB pages, 512 times fewer faults. glibc reads its
 tunables once, at process start, so the `jaxmotion` command restarts itself once with the tunable
