@@ -14,6 +14,7 @@ import difflib
 import importlib.util
 import math
 import re
+import sys
 import traceback
 import types
 import typing
@@ -146,10 +147,12 @@ def _config_code(path: Path, namespace: dict):
 
 
 def _config_types(namespace: dict) -> dict[str, type]:
-    """Returns the config dataclasses by name: `Config`, every registered method's settings, the file's own, and their nested ones."""
-    from jaxmotion.methods import methods  # the registry imports the models, which import this module
-
-    todo = [Config, *(m.config_type for m in methods().values()), *(v for v in namespace.values() if isinstance(v, type))]
+    """Returns the config dataclasses by name: `Config`, those of every jaxmotion module imported so far (the
+    methods' settings: a config file imports the model modules it names), the file's own, and their nested ones."""
+    loaded = [m for name, m in list(sys.modules.items()) if name.startswith("jaxmotion.") and m is not None]
+    modules = loaded + [v for v in namespace.values() if isinstance(v, types.ModuleType)]
+    todo = [Config, *(v for m in modules for v in vars(m).values() if isinstance(v, type)),
+            *(v for v in namespace.values() if isinstance(v, type))]
     found: dict[str, type] = {}
     while todo:
         t = todo.pop()
