@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 # CMD and FID are off in this file's configs (`action_metrics=False`): tests/test_action_metrics.py covers them.
-from jaxmotion import losses
+from jaxmotion import dct, losses
 from jaxmotion.cli import main
 from jaxmotion.models import divsamp
 from jaxmotion.models.divsamp import DivSampConfig
@@ -39,14 +39,14 @@ def models():
 
 def test_dct_nodes_round_trip_and_padding():
     seq = _x(t=T_HIS + T_PRED)
-    nodes = divsamp.to_nodes(seq, T_HIS + T_PRED)  # every coefficient kept: exact inverse
+    nodes = dct.to_nodes(seq, T_HIS + T_PRED)  # every coefficient kept: exact inverse
     assert nodes.shape == (B, J, 3 * (T_HIS + T_PRED))
-    np.testing.assert_allclose(np.asarray(divsamp.from_nodes(nodes, T_HIS + T_PRED)), np.asarray(seq), atol=1e-5)
-    pad = divsamp.pad_history(_x(), T_PRED)
+    np.testing.assert_allclose(np.asarray(dct.from_nodes(nodes, T_HIS + T_PRED)), np.asarray(seq), atol=1e-5)
+    pad = dct.pad_history(_x(), T_PRED)
     np.testing.assert_array_equal(np.asarray(pad[:, T_HIS:]), np.broadcast_to(np.asarray(_x()[:, -1:]), (B, T_PRED, D)))
     # Joint j's features are the coefficients of its own 3 coordinates.
-    c = divsamp.to_nodes(seq, NDCT)
-    ref = np.asarray(divsamp.dct(seq[..., 3:6], NDCT)).transpose(0, 2, 1).reshape(B, -1)
+    c = dct.to_nodes(seq, NDCT)
+    ref = np.asarray(dct.dct(seq[..., 3:6], NDCT)).transpose(0, 2, 1).reshape(B, -1)
     np.testing.assert_allclose(np.asarray(c[:, 1]), ref, atol=1e-5)
 
 

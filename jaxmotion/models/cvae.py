@@ -27,22 +27,15 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
 from jaxmotion.dct import dct, idct
-from jaxmotion.distributed import batch_rows
+from jaxmotion.nn.batch import batch_rows
 from jaxmotion.nn.decoder_loop import decoder_loop, decoder_scan
+from jaxmotion.nn.gaussian import reparameterise
 from jaxmotion.nn.gru import GRU, GRUCell
 from jaxmotion.nn.linear import Dense
 from jaxmotion.nn.mlp import MLP
 from jaxmotion.nn.precision import matmul
 
 LATENT_KINDS = ("vector", "dct")
-
-
-def reparameterise(mu: Float[ArrayLike, "..."], logvar: Float[ArrayLike, "..."], key: jax.Array | None) -> Float[Array, "..."]:
-    """Returns `mu + exp(logvar / 2) * eps`, eps ~ N(0, I) (Kingma & Welling Eq. (10)); `mu` when `key` is None."""
-    if key is None:
-        return mu
-    eps = batch_rows(lambda n: jax.random.normal(key, (n,) + mu.shape[1:]), mu.shape[0])
-    return mu + jnp.exp(0.5 * logvar) * eps
 
 
 def vmap_k(decode: Callable[[jax.Array], jax.Array], z: Float[ArrayLike, "b k ..."]) -> Float[Array, "b k ..."]:

@@ -34,13 +34,12 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from jaxmotion.dct import dct, idct
-from jaxmotion.distributed import batch_rows
+from jaxmotion.dct import condition_nodes, from_nodes, to_nodes
+from jaxmotion.nn.batch import batch_rows
 from jaxmotion.gumbel import COEFFICIENT_KINDS, sample_coefficients
 from jaxmotion.losses import dlow_diversity, hinge_diversity, kld_normal
-# The skeleton's bones live with the metrics (motion transfer uses them too); kept importable from here.
-from jaxmotion.metrics import bone_lengths, bone_matrix, bone_vectors  # noqa: F401
-from jaxmotion.models.cvae import reparameterise
+from jaxmotion.body.bones import bone_lengths, bone_matrix, bone_vectors  # noqa: F401 (public here too)
+from jaxmotion.nn.gaussian import reparameterise
 from jaxmotion.nn.gcn import GCLStack, GraphConv
 from jaxmotion.nn.batchnorm import RUNNING_VARS, BatchNorm
 from jaxmotion.nn.linear import DENSE_INITS, Dense
@@ -135,36 +134,6 @@ def check_config(c: DivSampConfig) -> DivSampConfig:
     if c.bn_running_var not in RUNNING_VARS:
         raise ValueError(f"DivSampConfig.bn_running_var must be one of {RUNNING_VARS}, got {c.bn_running_var!r}")
     return c
-
-
-# --------------------------------------------------------------------------------------------
-# Frames <-> DCT node features.
-
-
-def pad_history(x: Float[ArrayLike, "b t_his d"], t_pred: int) -> Float[Array, "b t d"]:
-    """Returns the history followed by `t_pred` copies of its last pose (DivSamp Sec. 3.1)."""
-    return jnp.concatenate([x, jnp.repeat(x[:, -1:], t_pred, axis=1)], axis=1)
-
-
-def to_nodes(seq: Float[ArrayLike, "b t d"], n_dct: int) -> Float[Array, "b j c"]:
-    """Returns `(b, J, 3 * n_dct)`: the first `n_dct` DCT coefficients of each coordinate, grouped by joint."""
-    c = dct(seq, n_dct)  # (b, n_dct, D)
-    b, n, d = c.shape
-    # Per joint [x_0..x_{n-1}, y_0.., z_0..], the release's `view(b, -1, 3 * dct_n)` layout.
-    return c.reshape(b, n, d // 3, 3).transpose(0, 2, 3, 1).reshape(b, d // 3, 3 * n)
-
-
-def from_nodes(nodes: Float[ArrayLike, "b j c"], n_frames: int) -> Float[Array, "b t d"]:
-    """Returns the `(b, n_frames, D)` frames whose DCT coefficients are `nodes` (the inverse of `to_nodes`)."""
-    b, j, c = nodes.shape
-    n = c // 3
-    coeffs = nodes.reshape(b, j, 3, n).transpose(0, 3, 1, 2).reshape(b, n, j * 3)
-    return idct(coeffs, n_frames)
-
-
-def condition_nodes(x: Float[ArrayLike, "b t_his d"], t_pred: int, n_dct: int) -> Float[Array, "b j c"]:
-    """Returns the DCT node features of the padded history: the input of both networks."""
-    return to_nodes(pad_history(x, t_pred), n_dct)
 
 
 # --------------------------------------------------------------------------------------------

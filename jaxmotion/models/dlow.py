@@ -17,7 +17,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from jaxmotion.distributed import batch_rows
+from jaxmotion.nn.batch import batch_rows
 from jaxmotion.losses import dlow_diversity, kld_affine, kld_normal, min_of_k_sq_error
 from jaxmotion.models.cvae import GRUCVAE, cvae_objective, decode_k, sample_prior
 from jaxmotion.nn.gru import GRU

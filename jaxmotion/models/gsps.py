@@ -14,7 +14,7 @@ Two networks, trained one after the other (authors' release github.com/wei-mao-2
   frames, 5 at constant lr then linear decay).
 * **Generator** (`train.py`, `models/GCN.py: GCNParts`): the history padded with its last frame
   to `t_his + t_pred`, DCT, first `n_pre` coefficients, per-joint features `[x | y | z]`
-  (`divsamp.condition_nodes`). One GCN per body part (in -> 256, BatchNorm, tanh, 4 residual
+  (`jaxmotion.dct.condition_nodes`). One GCN per body part (in -> 256, BatchNorm, tanh, 4 residual
   blocks of two graph convolutions, 256 -> in, plus the input): part i sees the whole current
   body with its own 64-d noise tiled to every node, and writes back only its own joints; parts
   run in sequence (lower body, then upper body; or the five-part split). The inverse DCT gives
@@ -50,9 +50,10 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from jaxmotion.distributed import batch_rows, batch_sum
-from jaxmotion.metrics import pairwise_sq_distances
-from jaxmotion.models.divsamp import bone_lengths, bone_vectors, condition_nodes, from_nodes
+from jaxmotion.nn.batch import batch_rows, batch_sum
+from jaxmotion.body.bones import bone_lengths, bone_vectors
+from jaxmotion.dct import condition_nodes, from_nodes
+from jaxmotion.losses import pairwise_sq_distances
 from jaxmotion.nn.gcn import GCLStack, GraphConv
 
 PART_SPLITS = ("lower_upper", "five")

@@ -43,7 +43,7 @@ import jax.numpy as jnp
 from flax import struct
 from jaxtyping import Array, ArrayLike, Float
 
-from jaxmotion.distributed import batch_rows
+from jaxmotion.nn.batch import batch_rows
 from jaxmotion.losses import dlow_diversity, kld_normal, min_of_k_sq_error, robust_kld
 from jaxmotion.models.cvae import DecodeCarry, DecodeInputs, GRUCVAE, cvae_objective, decode_k, sample_prior
 from jaxmotion.models.dlow import QTrunk

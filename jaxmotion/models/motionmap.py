@@ -40,8 +40,8 @@ import numpy as np
 from jax import lax
 from jaxtyping import Array, Bool, Float, Int, Shaped
 
-from jaxmotion.distributed import batch_rows
-from jaxmotion.metrics import MMSets, frame_parents, mm_errors_transferred, motion_transfer, motionmap_mm_sets  # noqa: F401 (re-exported)
+from jaxmotion.nn.batch import batch_rows
+from jaxmotion.body.bones import frame_parents, motion_transfer  # noqa: F401 (re-exported)
 from jaxmotion.nn.gru import GRU, GRUCell, gru_update
 from jaxmotion.nn.linear import DENSE_INITS, Conv1x1, Dense
 from jaxmotion.nn.mlp import MLP
@@ -105,9 +105,9 @@ class MotionMapConfig:
             raise ValueError(f"MotionMapConfig.dense_init must be one of {DENSE_INITS}, got {self.dense_init!r}")
 
 
-# Motion transfer and MotionMap's multimodal ground truth (appendix A) are evaluation as much as
-# training: they live in `jaxmotion.metrics` (`motion_transfer`, `motionmap_mm_sets`) and are
-# re-exported here.
+# Motion transfer (appendix A) is shared with evaluation: it lives with the skeleton's bones
+# (`jaxmotion.body.bones.motion_transfer`) and is re-exported here. MotionMap's multimodal ground
+# truth, built on it, is the evaluation protocol's (`jaxmotion.metrics.motionmap_mm_sets`).
 
 
 # --------------------------------------------------------------------------------------------

@@ -10,7 +10,7 @@ unbiased one (times n / (n - 1), n the number of values per feature in the batch
 here) are flax's, so checkpoints of either kind load into the other.
 
 Inside the data-parallel train step the batch moments are the whole global batch's: each device's
-moments are averaged over the devices (`distributed.batch_mean`, equal shares), as one device
+moments are averaged over the devices (`batch.batch_mean`, equal shares), as one device
 computes them.
 """
 
@@ -22,7 +22,7 @@ import flax.linen as nn
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from jaxmotion import distributed
+from jaxmotion.nn import batch
 
 RUNNING_VARS = ("unbiased", "biased")
 
@@ -57,10 +57,10 @@ class BatchNorm(nn.Module):
         if self.use_running_average:
             mean, var = ra_mean.value.reshape(view), ra_var.value.reshape(view)
         else:
-            mean = distributed.batch_mean(jnp.mean(x, axis=axes, keepdims=True))
-            var = distributed.batch_mean(jnp.mean(jnp.square(x - mean), axis=axes, keepdims=True))
+            mean = batch.batch_mean(jnp.mean(x, axis=axes, keepdims=True))
+            var = batch.batch_mean(jnp.mean(jnp.square(x - mean), axis=axes, keepdims=True))
             if not self.is_initializing():
-                n = math.prod(x.shape[a] for a in axes) * distributed.batch_parts()
+                n = math.prod(x.shape[a] for a in axes) * batch.batch_parts()
                 keep = var * (n / (n - 1)) if self.running_var == "unbiased" and n > 1 else var
                 m = self.momentum
                 ra_mean.value = m * ra_mean.value + (1.0 - m) * mean.reshape(-1)
