@@ -33,6 +33,7 @@ import optax
 from jaxtyping import Array, ArrayLike, Float, Int
 
 from jaxmotion.dct import dct, idct
+from jaxmotion.nn.execution import Execution
 from jaxmotion.nn.linear import Dense, initializers
 from jaxmotion.nn.precision import matmul
 
@@ -196,13 +197,13 @@ class Denoiser(nn.Module):
     num_heads: int = 4
     dropout: float = 0.2
     dense_init: str = "torch"
-    precision: str = "float32"
+    execution: Execution = Execution()  # how it runs (its products' precision): nn/execution.py
 
     @nn.compact
     def __call__(self, x: Float[ArrayLike, "b n d"], t: Int[ArrayLike, " b"], cond: Float[ArrayLike, "b n d"],
                  keep: Float[ArrayLike, " b"], deterministic: bool = True) -> Float[Array, "b n d"]:
         b, n, _ = x.shape
-        c, mm, rule = self.latent, self.precision, self.dense_init
+        c, mm, rule = self.latent, self.execution.precision, self.dense_init
         emb = Dense(c, rule=rule, precision=mm, name="time_in")(timestep_embedding(t, c))
         emb = Dense(c, rule=rule, precision=mm, name="time_out")(nn.silu(emb))
         emb = emb + jnp.asarray(keep, jnp.float32)[:, None] * Dense(c, rule=rule, precision=mm, name="cond_embed")(
@@ -220,10 +221,10 @@ class Denoiser(nn.Module):
         return ZeroDense(self.dim, mm, name="out")(h)
 
 
-def denoiser(c: DiffusionConfig, dim: int, precision: str = "float32") -> Denoiser:
-    """Returns the denoiser a `DiffusionConfig` describes for `dim`-dimensional frames."""
+def denoiser(c: DiffusionConfig, dim: int, execution: Execution = Execution()) -> Denoiser:
+    """Returns the denoiser a `DiffusionConfig` describes for `dim`-dimensional frames, run as `execution` says."""
     return Denoiser(dim=dim, n_dct=c.n_dct, latent=c.latent, ff=c.ff, num_layers=c.num_layers, num_heads=c.num_heads,
-                    dropout=c.dropout, dense_init=c.dense_init, precision=precision)
+                    dropout=c.dropout, dense_init=c.dense_init, execution=execution)
 
 
 # ---------------------------------------------------------------------------------------------

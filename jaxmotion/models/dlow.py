@@ -20,6 +20,7 @@ from jaxtyping import Array, ArrayLike, Float
 from jaxmotion.nn.batch import batch_rows
 from jaxmotion.losses import dlow_diversity, kld_affine, kld_normal, min_of_k_sq_error
 from jaxmotion.models.cvae import GRUCVAE, cvae_objective, decode_k, sample_prior
+from jaxmotion.nn.execution import Execution
 from jaxmotion.nn.gru import GRU
 from jaxmotion.nn.linear import Dense
 from jaxmotion.nn.mlp import MLP
@@ -97,10 +98,10 @@ class DLowCVAE(GRUCVAE):
     residual: bool = False
 
 
-def cvae_model(c: CVAEConfig, dim: int, horizon: int, precision: str = "float32") -> DLowCVAE:
-    """Returns the CVAE module a `CVAEConfig` describes (`precision`: its products', nn/precision.py)."""
+def cvae_model(c: CVAEConfig, dim: int, horizon: int, execution: Execution = Execution()) -> DLowCVAE:
+    """Returns the CVAE module a `CVAEConfig` describes, run as `execution` says (nn/execution.py)."""
     return DLowCVAE(
-        dim=dim, horizon=horizon, nz=c.nz, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp), dense_init=c.dense_init, precision=precision
+        dim=dim, horizon=horizon, nz=c.nz, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp), dense_init=c.dense_init, execution=execution
     )
 
 
@@ -117,11 +118,11 @@ class QTrunk(nn.Module):
     nh_rnn: int = 128
     nh_mlp: tuple[int, ...] = (1024, 512)
     dense_init: str = "torch"  # "torch" (the releases' nn.Linear) or "flax" (nn.Dense)
-    precision: str = "float32"  # every weight product's: "float32" or "bf16" (nn/precision.py)
+    execution: Execution = Execution()  # how it runs (its products' precision): nn/execution.py
 
     @nn.compact
     def __call__(self, x: Float[ArrayLike, "b t_his d"]):
-        mm = self.precision
+        mm = self.execution.precision
         h = GRU(self.nh_rnn, mm, name="x_rnn")(x, last_only=True)
         h = MLP(self.nh_mlp, dense_init=self.dense_init, precision=mm, name="mlp")(h)
         # One Dense with n_heads * nk * nz outputs is exactly n_heads unshared linear heads.
@@ -143,9 +144,9 @@ class DLowQ(QTrunk):
         return a * eps[:, None, :] + b, a, b
 
 
-def q_model(c: QConfig, nz: int, nk: int, precision: str = "float32") -> DLowQ:
+def q_model(c: QConfig, nz: int, nk: int, execution: Execution = Execution()) -> DLowQ:
     """Returns the Q network of a `QConfig` for `nk` samples of an `nz`-dimensional latent."""
-    return DLowQ(nz=nz, nk=nk, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp), dense_init=c.dense_init, precision=precision)
+    return DLowQ(nz=nz, nk=nk, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp), dense_init=c.dense_init, execution=execution)
 
 
 def sample_dlow(cvae: DLowCVAE, cvae_params, q: DLowQ, q_params, x, key: jax.Array) -> Float[Array, "b nk t_pred d"]:
