@@ -8,7 +8,7 @@ Both sides train the CVAE of `experiments/configs/dlow_bandai.py` (nz 128, beta 
 Adam at lr 1e-3 with the config's schedule over `--steps`, batch 64) on the same stream of training
 batches (jaxmotion's window sampler, numpy, one seed: the identical windows in the same order), each
 initialised by its own framework's rule (PyTorch's `nn.Linear` / `nn.GRU`, which jaxmotion's
-`dense_init="torch"` follows). Every `--every` steps each evaluates the **validation
+layers follow, nn/linear.py and nn/gru.py). Every `--every` steps each evaluates the **validation
 reconstruction**: the mean over frames of the per-frame error ||y_rec - y|| (metres, the ADE
 convention of PROTOCOL sec. 2) of the posterior-mean reconstruction (z = mu) of `--val-windows`
 evenly spaced test windows. That is a fixed yardstick of how well the CVAE has learnt, not its

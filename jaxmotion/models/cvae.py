@@ -72,9 +72,6 @@ class GRUCVAE(nn.Module):
     nh_mlp: tuple[int, ...] = (300, 200)
     latent: str = "vector"
     residual: bool = False
-    # Dense layers' initialisation: "torch" (the references' nn.Linear) or "flax" (nn.Dense). GRUs
-    # always follow PyTorch's rule (nn/gru.py).
-    dense_init: str = "torch"
     # How it runs (precision, the decoder loop's backward form, remat, unroll): nn/execution.py.
     execution: Execution = Execution()
 
@@ -89,16 +86,16 @@ class GRUCVAE(nn.Module):
     def setup(self):
         if self.latent not in LATENT_KINDS:
             raise ValueError(f"{type(self).__name__}.latent must be one of {LATENT_KINDS}, got {self.latent!r}")
-        init, mm = self.dense_init, self.execution.precision
+        mm = self.execution.precision  # every layer initialised as the references' PyTorch layers (nn/linear.py, nn/gru.py)
         self.x_rnn = GRU(self.nh_rnn, mm)
         self.e_rnn = GRU(self.nh_rnn, mm)
-        self.e_mlp = MLP(self.nh_mlp, dense_init=init, precision=mm)
-        self.e_mu = Dense(self.nz, rule=init, precision=mm)
-        self.e_logvar = Dense(self.nz, rule=init, precision=mm)
-        self.drnn_mlp = MLP(tuple(self.nh_mlp) + (self.nh_rnn,), dense_init=init, precision=mm)
+        self.e_mlp = MLP(self.nh_mlp, precision=mm)
+        self.e_mu = Dense(self.nz, precision=mm)
+        self.e_logvar = Dense(self.nz, precision=mm)
+        self.drnn_mlp = MLP(tuple(self.nh_mlp) + (self.nh_rnn,), precision=mm)
         self.d_cell = GRUCell(self.nh_rnn, mm)
-        self.d_mlp = MLP(self.nh_mlp, dense_init=init, precision=mm)
-        self.d_out = Dense(self.dim, rule=init, precision=mm)
+        self.d_mlp = MLP(self.nh_mlp, precision=mm)
+        self.d_out = Dense(self.dim, precision=mm)
 
     def encode_x(self, x: Float[ArrayLike, "b t_his d"]) -> Float[Array, "b h"]:
         """Returns the last hidden state of the past encoder GRU."""

@@ -42,10 +42,6 @@ class CVAEConfig:
     lr_fix_fraction: float = 0.2  # DLow keeps lr constant for 100 of 500 epochs, then decays linearly to 0
     beta: float = 0.1
     lambda_v: float = 1000.0
-    # Dense layers' initialisation: "torch" (default) is the release's nn.Linear, U(+-1/sqrt(fan_in));
-    # "flax" is nn.Dense (lecun-normal weights, zero biases), what the tables before issue 11 used.
-    # With "flax" the CVAE's KL reaches 132 nats at step 50 on Bandai, against 7.8 (the release: 4.7).
-    dense_init: str = "torch"
 
 
 @dataclasses.dataclass(slots=True)
@@ -62,7 +58,6 @@ class QConfig:
     lambda_j: float = 25.0
     lambda_recon: float = 2.0
     lambda_kl: float = 1.0
-    dense_init: str = "torch"  # as CVAEConfig.dense_init
 
 
 def _synthetic_cvae() -> CVAEConfig:
@@ -101,7 +96,7 @@ class DLowCVAE(GRUCVAE):
 def cvae_model(c: CVAEConfig, dim: int, horizon: int, execution: Execution = Execution()) -> DLowCVAE:
     """Returns the CVAE module a `CVAEConfig` describes, run as `execution` says (nn/execution.py)."""
     return DLowCVAE(
-        dim=dim, horizon=horizon, nz=c.nz, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp), dense_init=c.dense_init, execution=execution
+        dim=dim, horizon=horizon, nz=c.nz, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp), execution=execution
     )
 
 
@@ -117,18 +112,17 @@ class QTrunk(nn.Module):
     n_heads: int = 1
     nh_rnn: int = 128
     nh_mlp: tuple[int, ...] = (1024, 512)
-    dense_init: str = "torch"  # "torch" (the releases' nn.Linear) or "flax" (nn.Dense)
     execution: Execution = Execution()  # how it runs (its products' precision): nn/execution.py
 
     @nn.compact
     def __call__(self, x: Float[ArrayLike, "b t_his d"]):
         mm = self.execution.precision
         h = GRU(self.nh_rnn, mm, name="x_rnn")(x, last_only=True)
-        h = MLP(self.nh_mlp, dense_init=self.dense_init, precision=mm, name="mlp")(h)
+        h = MLP(self.nh_mlp, precision=mm, name="mlp")(h)
         # One Dense with n_heads * nk * nz outputs is exactly n_heads unshared linear heads.
         shape = (-1, self.n_heads, self.nk, self.nz)
-        a = Dense(self.n_heads * self.nk * self.nz, rule=self.dense_init, precision=mm, name="head_A")(h).reshape(shape)
-        b = Dense(self.n_heads * self.nk * self.nz, rule=self.dense_init, precision=mm, name="head_b")(h).reshape(shape)
+        a = Dense(self.n_heads * self.nk * self.nz, precision=mm, name="head_A")(h).reshape(shape)
+        b = Dense(self.n_heads * self.nk * self.nz, precision=mm, name="head_b")(h).reshape(shape)
         return a, b
 
 
@@ -146,7 +140,7 @@ class DLowQ(QTrunk):
 
 def q_model(c: QConfig, nz: int, nk: int, execution: Execution = Execution()) -> DLowQ:
     """Returns the Q network of a `QConfig` for `nk` samples of an `nz`-dimensional latent."""
-    return DLowQ(nz=nz, nk=nk, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp), dense_init=c.dense_init, execution=execution)
+    return DLowQ(nz=nz, nk=nk, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp), execution=execution)
 
 
 def sample_dlow(cvae: DLowCVAE, cvae_params, q: DLowQ, q_params, x, key: jax.Array) -> Float[Array, "b nk t_pred d"]:
