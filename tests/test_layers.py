@@ -335,18 +335,6 @@ def test_no_cycle_between_subpackages(scanned):
     assert cycle is None, "import cycle between jaxmotion's subpackages:\n" + _explain(cycle, why)
 
 
-def test_no_cycle_between_modules_at_import_time(scanned):
-    _, imports, _ = scanned
-    edges: dict[str, set[str]] = {}
-    why: dict[tuple[str, str], list[Import]] = {}
-    for imp in imports:
-        if imp.top_level and imp.importer != imp.target:
-            edges.setdefault(imp.importer, set()).add(imp.target)
-            why.setdefault((imp.importer, imp.target), []).append(imp)
-    cycle = find_cycle(edges)
-    assert cycle is None, "module-level import cycle:\n" + _explain(cycle, why)
-
-
 def test_no_cycle_between_modules(scanned):
     _, imports, _ = scanned
     edges, why = module_edges(imports)
@@ -378,6 +366,12 @@ def test_no_private_name_imported_across_subpackages(scanned):
 # The checker itself, on a small package with every fault: it must see each one.
 
 
+def _write(pkg: Path, files: dict[str, str]) -> None:
+    for name, text in files.items():
+        (pkg / name).parent.mkdir(parents=True, exist_ok=True)
+        (pkg / name).write_text(text)
+
+
 def test_checker_finds_cycles_and_private_imports(tmp_path):
     pkg = tmp_path / "jaxmotion"
     files = {
@@ -394,9 +388,7 @@ def test_checker_finds_cycles_and_private_imports(tmp_path):
         "a.py": "from jaxmotion import b\n",
         "b.py": "from . import a\n",
     }
-    for name, text in files.items():
-        (pkg / name).parent.mkdir(parents=True, exist_ok=True)
-        (pkg / name).write_text(text)
+    _write(pkg, files)
     modules, imports, private = scan(pkg)
     assert "jaxmotion.formats" in modules and "jaxmotion.data.datasets" in modules
     edges, _ = _unit_edges(imports)
@@ -436,9 +428,7 @@ def test_checker_finds_function_level_cycles_and_model_imports(tmp_path):
         "body/fit.py": "from jaxmotion.body.params import p\nfit = 1\n",
         "body/params.py": "p = 0\n",
     }
-    for name, text in files.items():
-        (pkg / name).parent.mkdir(parents=True, exist_ok=True)
-        (pkg / name).write_text(text)
+    _write(pkg, files)
     _, imports, _ = scan(pkg)
     edges, why = module_edges(imports)
     assert edges["jaxmotion.body.fit"] == {"jaxmotion.body.params"}  # no edge to the package's __init__
@@ -469,13 +459,13 @@ def main() -> int:
         print(f"  {a} -> {', '.join(deps)}")
     cycle = find_cycle(edges)
     print("unit cycle:", _explain(cycle, why) if cycle else "none")
-    mod_edges: dict[str, set[str]] = {}
-    for imp in imports:
-        if imp.top_level and imp.importer != imp.target:
-            mod_edges.setdefault(imp.importer, set()).add(imp.target)
-    print("module-level module cycle:", " -> ".join(find_cycle(mod_edges) or ["none"]))
+    mod_edges, mod_why = module_edges(imports)
+    mod_cycles = cycles(mod_edges)
+    print("module cycles:", "\n".join(_explain(c, mod_why) for c in mod_cycles) if mod_cycles else "none")
+    bad = model_imports_against_layers(imports)
+    print("model imports against the layers:", "\n  ".join([""] + bad) if bad else "none")
     print("private names across units:", "\n  ".join([""] + private) if private else "none")
-    return 1 if cycle or find_cycle(mod_edges) or private else 0
+    return 1 if cycle or mod_cycles or private or bad else 0
 
 
 if __name__ == "__main__":
