@@ -70,11 +70,12 @@ def jax_worker(args) -> dict:
     from jaxmotion.compile_time import CompileTimer
     from jaxmotion.methods.common import adam
     from jaxmotion.models import dlow
+    from jaxmotion.nn.execution import Execution
     from jaxmotion.train.loop import create_state, make_train_step
 
     _, c, sampler, val, ds = _setup(args.data, args.val_windows)
     t_his = ds.t_his
-    cvae = dlow.cvae_model(c, ds.dim, ds.t_pred, args.precision)
+    cvae = dlow.cvae_model(c, ds.dim, ds.t_pred, Execution(precision=args.precision))
     params = cvae.init(jax.random.key(args.seed), jnp.zeros((1, t_his, ds.dim)), jnp.zeros((1, ds.t_pred, ds.dim)), jax.random.key(0))
     tx = adam(c.lr, args.steps, c.lr_fix_fraction)
     loss = functools.partial(dlow.cvae_loss, cvae, t_his=t_his, beta=c.beta, lambda_v=c.lambda_v)
