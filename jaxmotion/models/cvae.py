@@ -12,8 +12,8 @@ DLow's CVAE (Yuan & Kitani 2020) is the one-band case of MOJO's (Zhang et al. 20
   MLP and a linear layer; with `residual` (MOJO) that layer predicts the change from `y_{t-1}`.
 
 `DLowCVAE` and `MojoCVAE` (in `models/dlow.py`, `models/mojo.py`) are this module with the
-papers' defaults. The helpers below (`reparameterise`, `decode_k`, `sample_prior`) are written
-once and used by every CVAE in the library, DivSamp's GCN CVAE included.
+papers' defaults. The helpers below (`decode_k`, `sample_prior`) are written once for both; the
+reparameterised draw is `jaxmotion.nn.gaussian.reparameterise`, which DivSamp's GCN CVAE shares.
 """
 
 from __future__ import annotations
