@@ -11,13 +11,13 @@
 `--ab precision`: float32 against bfloat16 products (`Config.precision = "bf16"`,
 jaxmotion/nn/precision.py rounds both operands of every weight product to bfloat16 and accumulates
 in float32). `--ab decoder_remat`: the GRU decoders' backward pass stacking every intermediate of
-every step against recomputing the gates' elementwise work (`GRUCVAE.decoder_remat`, DLow and MOJO).
+every step against recomputing the gates' elementwise work (`Execution.decoder_remat`, DLow and MOJO).
 `--ab decoder_unroll`: the same decoders' `lax.scan` loop rolled against unrolled 4 steps at a time
-(`GRUCVAE.decoder_unroll`). Both shape the differentiated loop, so they run with
+(`Execution.decoder_unroll`). Both shape the differentiated loop, so they run with
 `decoder_backward="autodiff"`. `--ab decoder_backward`: that loop against the batched backward pass,
-each weight's gradient one product after the loop (`GRUCVAE.decoder_backward`, nn/decoder_loop.py).
+each weight's gradient one product after the loop (`Execution.decoder_backward`, nn/decoder_loop.py).
 `--ab gcn_node_major`: DivSamp's and GSPS's graph-convolution stacks laid out batch-major
-`(..., J, F)` against node-major `(J, ..., F)` inside (`nn/gcn.py` `GCLStack.node_major`).
+`(..., J, F)` against node-major `(J, ..., F)` inside (`Execution.gcn_node_major`, `nn/gcn.py` `GCLStack.node_major`).
 `--ab gsps_best_of`: GSPS's best-of-K squared errors (against the truth and every pseudo future) by
 differencing every pair against `|a|^2 + |m|^2 - 2 a.m` (`models/gsps.py` `generator_loss(best_of=...)`).
 Each case of `benchmarks/run.py`'s plan named in `--cases` is built twice by the benchmark's own

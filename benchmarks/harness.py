@@ -54,10 +54,11 @@ class Settings:
     models: tuple[str, ...] = MODELS
     seed: int = 0
     precision: str = "float32"  # jaxmotion's products (Config.precision); the PyTorch twins stay float32
-    decoder_remat: bool = True  # GRUCVAE.decoder_remat of DLow's and MOJO's CVAEs (benchmarks/ab.py --ab decoder_remat)
-    decoder_unroll: int = 1  # GRUCVAE.decoder_unroll of the same (benchmarks/ab.py --ab decoder_unroll)
-    decoder_backward: str = "batched"  # GRUCVAE.decoder_backward of the same (benchmarks/ab.py --ab decoder_backward)
-    gcn_node_major: bool = True  # the GCL stacks' layout in DivSamp and GSPS (benchmarks/ab.py --ab gcn_node_major)
+    # jaxmotion's execution choices (jaxmotion/nn/execution.py `Execution`, which jax_bench.py builds from these):
+    decoder_remat: bool = True  # Execution.decoder_remat: DLow's and MOJO's CVAE decoders (benchmarks/ab.py --ab decoder_remat)
+    decoder_unroll: int = 1  # Execution.decoder_unroll of the same (benchmarks/ab.py --ab decoder_unroll)
+    decoder_backward: str = "batched"  # Execution.decoder_backward of the same (benchmarks/ab.py --ab decoder_backward)
+    gcn_node_major: bool = True  # Execution.gcn_node_major: the GCL stacks' layout in DivSamp and GSPS (benchmarks/ab.py --ab gcn_node_major)
     gsps_best_of: str = "gram"  # how GSPS's loss forms its best-of-K errors (generator_loss best_of; ab.py --ab gsps_best_of)
     ddim_steps: tuple[int, ...] = (100, 10)  # the diffusion predictor's DDIM steps, each timed at every sampling batch
     ddim_warmup: int = 1  # the diffusion cases' own warm-up and repeat counts: one K = 50 batch of 64 at 100 steps

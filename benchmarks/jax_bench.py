@@ -27,6 +27,7 @@ from benchmarks.harness import (DIFFUSION_NOISE_STEPS, DIFFUSION_SIZES, Case, Pe
                                measure, parents_for, plan, reference_probe, timing)
 from jaxmotion.models import diffusion, divsamp, dlow, gsps, mojo
 from jaxmotion.models import motionmap as mm
+from jaxmotion.nn.execution import Execution
 from jaxmotion.train.loop import bn_optimizer, make_bn_train_step
 from jaxmotion.train.loop import create_state, make_train_step
 
@@ -72,14 +73,16 @@ class Builders:
 
     def __init__(self, s: Settings):
         self.s = s
+        # The settings' execution choices, the one value every model receives (jaxmotion/nn/execution.py).
+        self.ex = Execution(precision=s.precision, decoder_backward=s.decoder_backward, decoder_remat=s.decoder_remat,
+                            decoder_unroll=s.decoder_unroll, gcn_node_major=s.gcn_node_major)
         rng = np.random.default_rng(s.seed)
         self.data = lambda b, t: jnp.asarray(rng.normal(size=(b, t, s.dim)).astype(np.float32))
 
     # --- DLow ------------------------------------------------------------------------------------
     def dlow(self, c: Case):
         s = self.s
-        cvae = dlow.DLowCVAE(dim=s.dim, horizon=c.t_pred, precision=s.precision, decoder_remat=s.decoder_remat,
-                              decoder_unroll=s.decoder_unroll, decoder_backward=s.decoder_backward)
+        cvae = dlow.DLowCVAE(dim=s.dim, horizon=c.t_pred, execution=self.ex)
         p = cvae.init(jax.random.key(0), self.data(1, s.t_his), self.data(1, c.t_pred), jax.random.key(1))
         if c.kind == "train_cvae":
             tx = optax.adam(1e-3)
@@ -89,7 +92,7 @@ class Builders:
         x = self.data(c.batch, s.t_his)
         if c.kind == "sample_prior":
             return _sample_runner(lambda p, x, key: dlow.sample_prior(cvae, p, x, key, c.k), p, x, jax.random.key(2))
-        q = dlow.DLowQ(nk=c.k, precision=s.precision)
+        q = dlow.DLowQ(nk=c.k, execution=self.ex)
         qp = q.init(jax.random.key(3), x[:1], jnp.zeros((1, cvae.nz)))
         if c.kind == "sample":
             return _sample_runner(lambda p, qp, x, key: dlow.sample_dlow(cvae, p, q, qp, x, key), p, qp, x, jax.random.key(2))
@@ -103,9 +106,7 @@ class Builders:
     def mojo(self, c: Case):
         s = self.s
         cfg = mojo.MojoConfig()
-        model = mojo.cvae_model(cfg, s.dim, c.t_pred, s.precision).clone(decoder_remat=s.decoder_remat,
-                                                                                 decoder_unroll=s.decoder_unroll,
-                                                                                 decoder_backward=s.decoder_backward)
+        model = mojo.cvae_model(cfg, s.dim, c.t_pred, self.ex)
         p = model.init(jax.random.key(0), self.data(1, s.t_his), self.data(1, c.t_pred), jax.random.key(1))
         if c.kind == "train_cvae":
             tx = optax.adam(cfg.lr)
@@ -115,7 +116,7 @@ class Builders:
         x = self.data(c.batch, s.t_his)
         if c.kind == "sample_prior":
             return _sample_runner(lambda p, x, key: mojo.sample_prior(model, p, x, key, c.k), p, x, jax.random.key(2))
-        q = mojo.q_model(cfg, c.t_pred, c.k, s.precision)
+        q = mojo.q_model(cfg, c.t_pred, c.k, self.ex)
         qp = q.init(jax.random.key(3), x[:1], jnp.zeros((1, q.n_low, cfg.nz)))
         if c.kind == "sample":
             return _sample_runner(lambda p, qp, x, key: mojo.sample_mojo(model, p, q, qp, x, key), p, qp, x, jax.random.key(2))
@@ -128,7 +129,7 @@ class Builders:
     def divsamp(self, c: Case):
         s = self.s
         d = divsamp.DivSampConfig()
-        cvae = divsamp.cvae_from_config(d, s.precision).clone(gcn_node_major=s.gcn_node_major)
+        cvae = divsamp.cvae_from_config(d, self.ex)
         cx0 = jnp.zeros((2, s.dim // 3, 3 * d.n_dct))
         v = dict(cvae.init(jax.random.key(0), cx0, cx0, jax.random.key(1), train=False))
         if c.kind == "train_cvae":
@@ -141,7 +142,7 @@ class Builders:
         if c.kind == "sample_prior":
             fn = lambda v, x, key: divsamp.sample_prior(cvae, v, x, key, c.k, t_pred=c.t_pred)
             return _sample_runner(fn, v, x, jax.random.key(2))
-        sampler = divsamp.sampler_from_config(d, s.precision).clone(gcn_node_major=s.gcn_node_major)
+        sampler = divsamp.sampler_from_config(d, self.ex)
         sv = dict(sampler.init(jax.random.key(3), cx0, jax.random.key(4), 2, train=False))
         if c.kind == "sample":
             fn = lambda v, sv, x, key: divsamp.sample_divsamp(cvae, v, sampler, sv, x, key, c.k, t_pred=c.t_pred)
@@ -157,8 +158,7 @@ class Builders:
     def gsps(self, c: Case):
         s, g = self.s, gsps.GSPSConfig()
         parents, roles, parts, bounds = gsps_skeleton(s.dim)
-        gen = gsps.GSPSGenerator(parts=parts, hidden=g.hidden, num_stage=g.num_stage, bn_running_var=g.bn_running_var,
-                                 precision=s.precision, gcn_node_major=s.gcn_node_major)
+        gen = gsps.GSPSGenerator(parts=parts, hidden=g.hidden, num_stage=g.num_stage, execution=self.ex)
         nodes0 = jnp.zeros((2, s.dim // 3, 3 * g.n_pre))
         v = dict(gen.init(jax.random.key(0), nodes0, jnp.zeros((2, len(parts), g.nz)), train=False))
         if c.kind == "train_generator":
@@ -213,7 +213,7 @@ class Builders:
     # --- Diffusion -------------------------------------------------------------------------------
     def diffusion(self, c: Case):
         s = self.s
-        model = diffusion.Denoiser(dim=s.dim, precision=s.precision, **DIFFUSION_SIZES)
+        model = diffusion.Denoiser(dim=s.dim, execution=self.ex, **DIFFUSION_SIZES)
         x0 = jnp.zeros((1, model.n_dct, s.dim))
         p = model.init(jax.random.key(0), x0, jnp.ones((1,), jnp.int32), x0, jnp.ones((1,)))
         abar = diffusion.schedule("cosine", DIFFUSION_NOISE_STEPS)

@@ -8,7 +8,7 @@ Both sides train the CVAE of `experiments/configs/dlow_bandai.py` (nz 128, beta 
 Adam at lr 1e-3 with the config's schedule over `--steps`, batch 64) on the same stream of training
 batches (jaxmotion's window sampler, numpy, one seed: the identical windows in the same order), each
 initialised by its own framework's rule (PyTorch's `nn.Linear` / `nn.GRU`, which jaxmotion's
-`dense_init="torch"` follows). Every `--every` steps each evaluates the **validation
+layers follow, nn/linear.py and nn/gru.py). Every `--every` steps each evaluates the **validation
 reconstruction**: the mean over frames of the per-frame error ||y_rec - y|| (metres, the ADE
 convention of PROTOCOL sec. 2) of the posterior-mean reconstruction (z = mu) of `--val-windows`
 evenly spaced test windows. That is a fixed yardstick of how well the CVAE has learnt, not its
@@ -70,11 +70,12 @@ def jax_worker(args) -> dict:
     from jaxmotion.train.compile_time import CompileTimer
     from jaxmotion.methods.common import adam
     from jaxmotion.models import dlow
+    from jaxmotion.nn.execution import Execution
     from jaxmotion.train.loop import create_state, make_train_step
 
     _, c, sampler, val, ds = _setup(args.data, args.val_windows)
     t_his = ds.t_his
-    cvae = dlow.cvae_model(c, ds.dim, ds.t_pred, args.precision)
+    cvae = dlow.cvae_model(c, ds.dim, ds.t_pred, Execution(precision=args.precision))
     params = cvae.init(jax.random.key(args.seed), jnp.zeros((1, t_his, ds.dim)), jnp.zeros((1, ds.t_pred, ds.dim)), jax.random.key(0))
     tx = adam(c.lr, args.steps, c.lr_fix_fraction)
     loss = functools.partial(dlow.cvae_loss, cvae, t_his=t_his, beta=c.beta, lambda_v=c.lambda_v)

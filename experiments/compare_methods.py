@@ -37,7 +37,7 @@ def main(argv=None) -> int:
     from jaxmotion import experiment as ex
     from jaxmotion.eval import metrics
     from jaxmotion.tools.predictor import run_config
-    from jaxmotion.tools.viz import draw_pose, frames_to_joints, view_axes, plt
+    from jaxmotion.pictures.viz import draw_pose, frames_to_joints, view_axes, plt
 
     if args.samplers is not None and len(args.samplers) != len(args.runs):
         ap.error(f"--samplers needs one name per run ({len(args.runs)}), got {len(args.samplers)}")

@@ -44,7 +44,7 @@ def main(argv: list[str] | None = None) -> int:
     from jaxmotion import experiment
     from jaxmotion.eval import validity
     from jaxmotion.models import gsps
-    from jaxmotion.tools.viz import draw_pose, frames_to_joints, view_axes
+    from jaxmotion.pictures.viz import draw_pose, frames_to_joints, view_axes
 
     cache, rows, v, window = {}, [], None, args.window
     for run in map(Path, args.runs):

@@ -87,6 +87,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     from jaxmotion import experiment as ex
+    from jaxmotion.eval import metrics
     from jaxmotion.methods import motionmap as mmethod
     from jaxmotion.models import motionmap as mm
     from jaxmotion.tools.predictor import run_config
@@ -129,7 +130,7 @@ def main(argv=None) -> int:
 
     member_sets = {}
     for name, (pool, cells, dedupe, info) in maps.items():
-        sets = mm.motionmap_mm_sets(test_desc, thr, parents, reference_desc=pool.x[:, -c.descriptor_frames :])
+        sets = metrics.motionmap_mm_sets(test_desc, thr, parents, reference_desc=pool.x[:, -c.descriptor_frames :])
         idx, mask = member_sets[name] = np.asarray(sets.idx), np.asarray(sets.mask)
         members = mask.sum(1)
         distinct_cells = np.asarray([len(np.unique(cells[idx[w, mask[w]]], axis=0)) for w in range(len(idx))])

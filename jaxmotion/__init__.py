@@ -1,11 +1,11 @@
 """jaxmotion: stochastic 3D human motion prediction in JAX.
 
 The package's folders are its layers, lowest first: `formats/`, `data/`, `body/`, `nn/` (with
-`dct`, `gumbel`, `losses`), `models/` (each paper's equations), `methods/` (each method as a
-value: stages and predictors), `train/` (the one stage runner, the train step, devices and
-processes), `eval/` (the protocol: references, metrics, evaluators), `experiment` (a config's
-job: data -> train -> evaluate -> report), `tools/` (a trained run as a predictor, prediction
-from files, BVH out, pictures, the viewer) and `cli`.
+`dct`, `gumbel`, `losses`), `models/` (each paper's equations), `pictures/`, `methods/` (each
+method as a value: stages and predictors), `train/` (the one stage runner, the train step,
+devices and processes), `eval/` (the protocol: references, metrics, evaluators), `experiment` (a
+config's job: data -> train -> evaluate -> report), `tools/` (a trained run as a predictor,
+prediction from files, BVH out, the viewer) and `cli`.
 """
 
 __version__ = "0.1.0"
@@ -14,8 +14,8 @@ __version__ = "0.1.0"
 _MOVED = {
     "metrics": "eval.metrics", "action_metrics": "eval.action_metrics", "realism": "eval.realism",
     "validity": "eval.validity", "predictor": "tools.predictor", "predict_file": "tools.predict_file",
-    "predict_markers": "tools.predict_markers", "viewer": "tools.viewer", "animate": "tools.animate",
-    "viz": "tools.viz", "retarget": "tools.retarget", "evaluate_folder": "tools.evaluate_folder",
+    "predict_markers": "tools.predict_markers", "viewer": "tools.viewer", "animate": "pictures.animate",
+    "viz": "pictures.viz", "retarget": "tools.retarget", "evaluate_folder": "tools.evaluate_folder",
     "fit_c3d": "tools.fit_c3d", "joint_maps": "tools.joint_maps", "distributed": "train.distributed",
     "hugepages": "train.hugepages", "compile_time": "train.compile_time", "run_lock": "train.run_lock",
 }

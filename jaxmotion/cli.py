@@ -248,7 +248,7 @@ def _run(args, cfg, workdir: Path, part_control, source: str) -> int:
         import numpy as np
 
         from jaxmotion.formats.atomic import savez_atomic
-        from jaxmotion.tools.viz import plot_futures
+        from jaxmotion.pictures.viz import plot_futures
 
         if not 0 <= args.window < len(prep.windows):
             raise UsageError(f"--window must be in [0, {len(prep.windows)}), got {args.window}")
@@ -375,7 +375,7 @@ def _sample_fixed_parts(part_control, cfg, prep, params, i: int, k: int, fix: tu
     import numpy as np
 
     from jaxmotion.formats.atomic import savez_atomic
-    from jaxmotion.tools.viz import plot_futures
+    from jaxmotion.pictures.viz import plot_futures
 
     ds = prep.dataset
     try:

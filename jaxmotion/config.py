@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from jaxmotion.errors import ConfigError
+from jaxmotion.nn.execution import PRECISIONS
 
 
 @dataclasses.dataclass(slots=True)  # slots: setting a misspelt attribute (`c.ckpt_evry = 7`) is an error, as in every method config
@@ -187,7 +188,7 @@ def _unknown_fields(path: Path, namespace: dict) -> list[str]:
 
 _CHOICES = {"split": ("test", "val"), "train_sampler": ("windows", "sequences"), "mm_deviation": (None, "divsamp", "comusion", "gsps"),
             "mm_ground_truth": (None, "test", "train", "motionmap-test", "motionmap-train"),
-            "precision": ("float32", "bf16")}  # nn/precision.PRECISIONS (that module imports jax; tested equal)
+            "precision": PRECISIONS}
 # `Config`'s intervals: (field, rule, what the rule asks), checked once the field's type is right.
 _CONFIG_RULES = (
     *((n, lambda v: v >= 1, ">= 1") for n in ("ckpt_every", "log_every", "eval_batch", "micro_batches")),

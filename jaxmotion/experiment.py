@@ -30,7 +30,7 @@ from jaxmotion.eval.loop import format_record, predict_chunks
 from jaxmotion.method import Predictor
 from jaxmotion.methods import get_method
 from jaxmotion.eval.metrics import multimodal_gt
-from jaxmotion.tools.predictor import write_manifest
+from jaxmotion.train.manifest import write_manifest
 from jaxmotion.train import runner
 
 __all__ = ["get_method", "resolve", "load_data", "Prepared", "prepare", "check_lengths", "train", "restore", "predictors",
@@ -135,7 +135,7 @@ def report(cfg: Config, prep: Prepared, params, workdir: Path, method: str | Non
     on average: where a good stochastic predictor should show several distinct futures. A method
     with `Method.pictures` draws its own pictures of that window too; their paths are printed.
     """
-    from jaxmotion.tools.viz import plot_futures  # matplotlib: imported only when a picture is drawn
+    from jaxmotion.pictures.viz import plot_futures  # matplotlib: imported only when a picture is drawn
 
     ds = prep.dataset
     k = max(cfg.eval_k)
@@ -149,7 +149,7 @@ def report(cfg: Config, prep: Prepared, params, workdir: Path, method: str | Non
         f"{method}, K={k}, {ds.t_his} observed -> {ds.t_pred} predicted frames at {ds.fps:g} fps"
     )
     png = plot_futures(prep.x[i], preds, prep.y[i], ds.skeleton.parents, workdir / "samples.png", title=title)
-    from jaxmotion.tools.animate import animate_futures
+    from jaxmotion.pictures.animate import animate_futures
 
     animate_futures(prep.x[i], preds, prep.y[i], ds.skeleton.parents, workdir / "samples.gif", fps=ds.fps,
                     title=f"{ds.name}: test window {i}, {method}, K={k}; observed, then the futures")

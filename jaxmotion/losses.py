@@ -7,6 +7,7 @@ average over a batch.
 from __future__ import annotations
 
 import jax.numpy as jnp
+from jax import lax
 from jaxtyping import Array, Float
 
 
@@ -42,6 +43,25 @@ def pairwise_sq_dists(y: Float[Array, "k n"]) -> Float[Array, "k k"]:
     sq = jnp.sum(y**2, axis=-1)
     d2 = sq[:, None] + sq[None, :] - 2.0 * y @ y.T
     return jnp.maximum(d2, 0.0)
+
+
+def gram(a: Float[Array, "... p f"], b: Float[Array, "... q f"]) -> Float[Array, "... p q"]:
+    """Returns every dot product `a_i . b_j`, in float32 on every backend."""
+    # HIGHEST: float32 products even where the default would be TF32 / bfloat16 (GPU, TPU).
+    return jnp.einsum("...pf,...qf->...pq", a, b, precision=lax.Precision.HIGHEST)
+
+
+def pairwise_sq_distances(
+    a: Float[Array, "... p f"], b: Float[Array, "... q f"], *, a_sq: Float[Array, "... p"] | None = None,
+) -> Float[Array, "... p q"]:
+    """Returns `||a_i - b_j||^2` for every pair, as `|a|^2 + |b|^2 - 2 a.b` (one product), clipped at 0.
+
+    Rounding grows with the norms, not the distances: take both sides relative to a common point near
+    them first (a true future, one of the samples). `a_sq`: `sum(a * a, -1)` where the caller has it.
+    """
+    a_sq = jnp.sum(a * a, axis=-1) if a_sq is None else a_sq
+    b_sq = jnp.sum(b * b, axis=-1)
+    return jnp.maximum(a_sq[..., :, None] + b_sq[..., None, :] - 2.0 * gram(a, b), 0.0)
 
 
 def dlow_diversity(y: Float[Array, "k ..."], d_scale: float) -> Float[Array, ""]:

@@ -16,6 +16,7 @@ from jaxmotion.data.synthetic import make_synthetic
 from jaxmotion.data.types import MotionDataset, Sequence, Skeleton
 from jaxmotion.method import Method, register
 from jaxmotion.models import action_classifier as ac
+from jaxmotion.train.action_classifier import train as train_classifier
 
 SKELETON = Skeleton(("root", "a", "b"), (-1, 0, 0))
 
@@ -166,7 +167,7 @@ def test_classifier_tells_still_from_moving_in_a_few_dozen_steps():
         return (pose + vel * np.arange(12)[None, :, None]).astype(np.float32), labels
 
     c = ac.ClassifierConfig(hidden=16, features=8, num_steps=40, batch_size=32, lr=3e-2)
-    params = ac.train(batch, 2, c, log=None)
+    params = train_classifier(batch, 2, c, log=None)
     model = ac.make_model(2, c)
     y, labels = batch(np.random.default_rng(100), 200)
     assert ac.accuracy(model, params, y, labels) > 0.9

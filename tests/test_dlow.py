@@ -8,6 +8,7 @@ import pytest
 from jaxmotion import losses
 from jaxmotion.models import dlow
 from jaxmotion.models.cvae import GRUCVAE
+from jaxmotion.nn.execution import Execution
 from jaxmotion.nn.gru import GRU, GRUCell
 
 D, T_HIS, T_PRED, B = 6, 4, 5, 3
@@ -86,9 +87,10 @@ def test_decoder_scan_equals_step_by_step_decoding(cvae):
 
 @pytest.mark.parametrize("latent,residual", [("vector", False), ("dct", True), ("dct", False)])  # DLow, MOJO, and one more
 def test_decoder_backward_remat_and_unroll_give_the_same_futures_and_gradients(latent, residual):
-    """The batched backward pass (`decoder_backward="batched"`, nn/decoder_loop.py: each weight's gradient
-    one product after the loop), and with autodiff `decoder_remat` and `decoder_unroll`, change speed,
-    not numbers: the loss and every gradient (parameters and latent) as differentiating the loop gives them."""
+    """The execution choices (nn/execution.py) of the batched backward pass (`decoder_backward="batched"`,
+    nn/decoder_loop.py: each weight's gradient one product after the loop), and with autodiff `decoder_remat`
+    and `decoder_unroll`, change speed, not numbers: the loss and every gradient (parameters and latent) as
+    differentiating the loop gives them."""
     model = GRUCVAE(dim=D, horizon=T_PRED, nz=8, nh_rnn=16, nh_mlp=(20, 12), latent=latent, residual=residual)
     x = jnp.asarray(np.random.default_rng(0).normal(size=(B, T_HIS, D)), jnp.float32)
     params = model.init(jax.random.key(0), x, jnp.zeros((B, T_PRED, D)), jax.random.key(1))
@@ -100,18 +102,21 @@ def test_decoder_backward_remat_and_unroll_give_the_same_futures_and_gradients(l
         loss = lambda p, z: jnp.sum(weight * (m.apply(p, x, z, method=GRUCVAE.decode) - target) ** 2)  # noqa: E731
         return jax.jit(jax.value_and_grad(loss, argnums=(0, 1)))(params, z)
 
-    assert model.decoder_backward == "batched" and model.decoder_remat and model.decoder_unroll == 1  # the defaults
-    l_ref, g_ref = loss_and_grads(model.clone(decoder_backward="autodiff"))
-    for other in (model, model.clone(decoder_backward="autodiff", decoder_remat=False),
-                  model.clone(decoder_backward="autodiff", decoder_unroll=4),
-                  model.clone(decoder_backward="autodiff", decoder_unroll=T_PRED)):
+    ex = model.execution
+    assert ex.decoder_backward == "batched" and ex.decoder_remat and ex.decoder_unroll == 1  # the defaults
+    run = lambda **choices: model.clone(execution=Execution(**choices))  # noqa: E731
+    l_ref, g_ref = loss_and_grads(run(decoder_backward="autodiff"))
+    for other in (model, run(decoder_backward="autodiff", decoder_remat=False), run(decoder_backward="autodiff", decoder_unroll=4),
+                  run(decoder_backward="autodiff", decoder_unroll=T_PRED)):
         l_other, g_other = loss_and_grads(other)
         np.testing.assert_allclose(float(l_ref), float(l_other), rtol=1e-6)
         for a, b in zip(jax.tree.leaves(g_ref), jax.tree.leaves(g_other), strict=True):
             np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-5)
     assert float(jnp.abs(g_ref[1]).max()) > 0  # the latent's gradient (what DLow's Q network trains on) is not trivially zero
     with pytest.raises(ValueError, match="decoder_backward must be one of"):
-        model.clone(decoder_backward="manual").apply(params, x, z, method=GRUCVAE.decode)
+        Execution(decoder_backward="manual")
+    with pytest.raises(ValueError, match="decoder_unroll must be an integer >= 1"):
+        Execution(decoder_unroll=0)
 
 
 @pytest.mark.slow

@@ -1,7 +1,8 @@
-"""Initialisation of every layer of every model against its reference's rule (issue 11).
+"""Initialisation of every layer of every model against its reference's rule.
 
-Dense layers: `dense_init="torch"` is PyTorch's `nn.Linear`, U(-1/sqrt(fan_in), 1/sqrt(fan_in)) for
-weight and bias; `"flax"` is `nn.Dense`, lecun-normal weights (variance 1/fan_in) and zero biases.
+Dense layers: every model's are PyTorch's `nn.Linear`, U(-1/sqrt(fan_in), 1/sqrt(fan_in)) for weight
+and bias (`Dense(rule="torch")`); `Dense(rule="flax")` is `nn.Dense`, lecun-normal weights (variance
+1/fan_in) and zero biases.
 GRUs always follow PyTorch's `nn.GRU` (U(+-1/sqrt(hidden)) for all four tensors); DivSamp's graph
 convolutions its release (U(+-1/sqrt(out_features)) for weight, adjacency and bias).
 """
@@ -36,20 +37,16 @@ def _gru_cells(tree, path=()):
             yield from _gru_cells(v, path + (k,))
 
 
-def _check_dense(layers, rule: str):
+def _check_dense(layers):
+    """Every layer's weight and bias U(-1/sqrt(fan_in), 1/sqrt(fan_in)), as PyTorch's nn.Linear."""
     layers = list(layers)
     assert layers, "no dense layer found"
     for path, w, b in layers:
         bound = 1.0 / math.sqrt(w.shape[0])
-        if rule == "torch":
-            assert np.abs(w).max() <= bound and np.abs(b).max() <= bound, path
-            if w.size >= 2000:  # uniform: std = bound / sqrt(3)
-                assert np.std(w) == pytest.approx(bound / math.sqrt(3), rel=0.1), path
-                assert np.abs(w).max() > 0.95 * bound, path
-        else:
-            assert np.all(b == 0), path
-            if w.size >= 2000:
-                assert np.std(w) == pytest.approx(bound, rel=0.1), path
+        assert np.abs(w).max() <= bound and np.abs(b).max() <= bound, path
+        if w.size >= 2000:  # uniform: std = bound / sqrt(3)
+            assert np.std(w) == pytest.approx(bound / math.sqrt(3), rel=0.1), path
+            assert np.abs(w).max() > 0.95 * bound, path
 
 
 def _gru_ok(params):
@@ -63,23 +60,23 @@ def _gru_ok(params):
         assert np.std(np.asarray(c["weight_hh"])) == pytest.approx(bound / math.sqrt(3), rel=0.15), path
 
 
-def _dlow_params(init):
-    c = dlow.CVAEConfig(nz=16, nh_rnn=64, nh_mlp=(128, 64), dense_init=init)
+def _dlow_params():
+    c = dlow.CVAEConfig(nz=16, nh_rnn=64, nh_mlp=(128, 64))
     cvae = dlow.cvae_model(c, D, T_PRED)
     x, y = jnp.zeros((1, T_HIS, D)), jnp.zeros((1, T_PRED, D))
-    q = dlow.q_model(dlow.QConfig(nh_rnn=64, nh_mlp=(128, 64), dense_init=init), 16, 5)
+    q = dlow.q_model(dlow.QConfig(nh_rnn=64, nh_mlp=(128, 64)), 16, 5)
     return cvae.init(jax.random.key(0), x, y)["params"], q.init(jax.random.key(1), x, jnp.zeros((1, 16)))["params"]
 
 
-def _mojo_params(init):
-    m = mojo.MojoConfig(nz=8, nh_rnn=64, nh_mlp=(128, 64), q_nh_rnn=64, q_nh_mlp=(128, 64), dense_init=init)
+def _mojo_params():
+    m = mojo.MojoConfig(nz=8, nh_rnn=64, nh_mlp=(128, 64), q_nh_rnn=64, q_nh_mlp=(128, 64))
     model, q = mojo.cvae_model(m, D, T_PRED), mojo.q_model(m, T_PRED, 5)
     x, y = jnp.zeros((1, T_HIS, D)), jnp.zeros((1, T_PRED, D))
     return model.init(jax.random.key(0), x, y)["params"], q.init(jax.random.key(1), x, jnp.zeros((1, q.n_low, 8)))["params"]
 
 
-def _divsamp_params(init):
-    d = divsamp.check_config(divsamp.DivSampConfig(hidden=32, nz=8, num_bases=4, base_dim=16, nh=16, cvae_residual=1, sampler_residual=1, dense_init=init))
+def _divsamp_params():
+    d = divsamp.check_config(divsamp.DivSampConfig(hidden=32, nz=8, num_bases=4, base_dim=16, nh=16, cvae_residual=1, sampler_residual=1))
     cvae, sampler = divsamp.cvae_from_config(d), divsamp.sampler_from_config(d)
     cx = jnp.zeros((2, D // 3, 3 * d.n_dct))
     cv = cvae.init(jax.random.key(0), cx, cx, jax.random.key(1), train=False)["params"]
@@ -87,24 +84,23 @@ def _divsamp_params(init):
     return cv, sv
 
 
-@pytest.mark.parametrize("init", ["torch", "flax"])
 @pytest.mark.parametrize("build", [_dlow_params, _mojo_params, _divsamp_params], ids=["dlow", "mojo", "divsamp"])
 @pytest.mark.slow
-def test_every_dense_layer_follows_the_chosen_rule(build, init):
-    for params in build(init):
-        _check_dense(_dense_layers(params), init)
+def test_every_dense_layer_follows_pytorch(build):
+    for params in build():
+        _check_dense(_dense_layers(params))
 
 
 @pytest.mark.parametrize("build", [_dlow_params, _mojo_params], ids=["dlow", "mojo"])
 @pytest.mark.slow
 def test_grus_follow_pytorch(build):
-    for params in build("torch"):
+    for params in build():
         _gru_ok(params)
 
 
 @pytest.mark.slow
 def test_divsamp_graph_convolutions_follow_the_release():
-    cv, sv = _divsamp_params("torch")
+    cv, sv = _divsamp_params()
     convs = [(p, t) for p, t in _walk(cv) if "adjacency" in t]
     assert convs
     for path, t in convs:
@@ -147,10 +143,10 @@ def test_torch_rule_matches_a_fresh_pytorch_linear():
     assert np.abs(b).max() == pytest.approx(np.abs(tb).max(), rel=0.05)
 
 
-def _motionmap_params(init):
+def _motionmap_params():
     from jaxmotion.models import motionmap as mm
 
-    c = mm.MotionMapConfig(nh_rnn=32, nh_fuse=64, nh_uncertainty=64, n_uncertainty_layers=2, hm_size=16, dense_init=init)
+    c = mm.MotionMapConfig(nh_rnn=32, nh_fuse=64, nh_uncertainty=64, n_uncertainty_layers=2, hm_size=16)
     ae, hm = mm.ae_model(c, D, T_HIS, T_PRED), mm.heatmap_model(c)
     x, y = jnp.zeros((2, T_HIS, D)), jnp.zeros((2, T_PRED, D))
     return ae.init(jax.random.key(0), x, y)["params"], hm.init(jax.random.key(1), x)["params"]
@@ -164,21 +160,17 @@ def _gsps_params():
     return gen.init(jax.random.key(0), nodes, z, train=False)["params"]
 
 
-@pytest.mark.parametrize("init", ["torch", "flax"])
 @pytest.mark.slow
-def test_motionmap_dense_and_conv_layers_follow_the_chosen_rule(init):
-    ae, hm = _motionmap_params(init)
-    _check_dense(_dense_layers(ae), init)
-    _check_dense(_dense_layers(hm), init)
+def test_motionmap_dense_and_conv_layers_follow_pytorch():
+    ae, hm = _motionmap_params()
+    _check_dense(_dense_layers(ae))
+    _check_dense(_dense_layers(hm))
     convs = [(p, t) for p, t in _walk(hm) if "kernel" in t and np.ndim(t["kernel"]) == 4]
     assert len(convs) == 7
     for path, t in convs:
         w, b = np.asarray(t["kernel"]), np.asarray(t["bias"])
         bound = 1.0 / math.sqrt(w.shape[2])  # 1x1: fan_in = input channels (PyTorch nn.Conv2d)
-        if init == "torch":
-            assert np.abs(w).max() <= bound and np.abs(b).max() <= bound and np.any(b != 0), path
-        else:
-            assert np.all(b == 0), path
+        assert np.abs(w).max() <= bound and np.abs(b).max() <= bound and np.any(b != 0), path
     _gru_ok(ae)
 
 
@@ -194,15 +186,5 @@ def test_gsps_graph_convolutions_follow_the_release():
             assert np.std(a) == pytest.approx(bound / math.sqrt(3), rel=0.35), (path, name)
 
 
-def test_defaults_are_the_references():
-    from jaxmotion.models import gsps, motionmap
-
-    assert dlow.CVAEConfig().dense_init == dlow.QConfig().dense_init == "torch"
-    assert mojo.MojoConfig().dense_init == "torch"
-    d = divsamp.DivSampConfig()
-    assert (d.dense_init, d.test_eps, d.bn_running_var) == ("torch", "independent", "unbiased")
-    assert gsps.GSPSConfig().bn_running_var == "unbiased"
-    assert motionmap.MotionMapConfig().dense_init == "torch"
+def test_the_default_rule_is_pytorchs():
     assert Dense(3).rule == "torch"
-    with pytest.raises(ValueError, match="MotionMapConfig.dense_init"):
-        motionmap.MotionMapConfig(dense_init="xavier")

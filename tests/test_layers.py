@@ -1,4 +1,4 @@
-"""The package's layers import one way (issue 10): `formats <- body <- data`, no cycles, no private names.
+"""The package's layers import one way: `formats <- body <- data`, models below evaluation and training, no cycles, no private names.
 
 Every module under `jaxmotion/` is parsed with `ast` (nothing is imported), and every import is
 read, function-level ones included. A module belongs to a unit: its subpackage (`formats`, `body`,
@@ -8,10 +8,23 @@ read, function-level ones included. A module belongs to a unit: its subpackage (
 - the layers import downwards only: `formats` imports nothing from jaxmotion but `errors` (the
   error types, a leaf that imports nothing of jaxmotion), `body` may import `formats`, `data` may
   import `body` and `formats`, never the other way round;
-- the unit graph (all imports) and the module graph (module-level imports) have no cycle;
+- a model file (`jaxmotion/models/`) imports nothing above the models (`ABOVE_MODELS`: the metrics,
+  evaluation, methods, training, the experiment driver, the command line), and another model only
+  where its paper builds on it (`MODEL_ON_MODEL`);
+- the unit graph and the module graph, each from every import (function-level ones included: an
+  import inside a function hides a cycle from the interpreter, not from the reader), have no cycle;
 - the layers do not import each other inside functions (what held the old cycle together);
 - no unit imports another unit's private name (`from jaxmotion.data.datasets import _x`, or
   `datasets._x` on an imported module).
+
+An import is an edge to the module it loads: `import p.q` and `from p import q` (q a module) to
+`p.q`; `from p.q import x` (x a name, not a module) to `p.q`, a package's `__init__` when `p.q` is a
+package. Python also runs the `__init__` of every package above a loaded module; that is not an
+edge. A package `__init__` that imports its submodules (`jaxmotion.body`), whose submodules import
+each other by full path, would otherwise read as a cycle through the `__init__`, and that order
+always resolves (a submodule loads completely before the `__init__` reads its names). A name taken
+from an `__init__` (`from jaxmotion.body import fit_markers`) is an edge to it, which is where a
+cycle through an `__init__` can fail.
 
 To check another checkout, point `JAXMOTION_LAYERS_ROOT` at its root (the folder holding
 `jaxmotion/`) or at its package folder:
@@ -34,6 +47,16 @@ import pytest
 LAYERS = ("formats", "body", "data")
 # Below every layer: the error types (`jaxmotion.errors`), which import nothing of jaxmotion.
 LEAVES = ("errors",)
+# What a model file may not import: everything above the models.
+ABOVE_MODELS = ("jaxmotion.eval", "jaxmotion.experiment", "jaxmotion.method", "jaxmotion.methods", "jaxmotion.cli",
+                "jaxmotion.train", "jaxmotion.tools")  # fmt: skip
+# A model builds on another only where its paper does: DLow's and MOJO's CVAE is the shared GRU CVAE,
+# MOJO's second stage is DLow's Q network per DCT band.
+MODEL_ON_MODEL = frozenset({
+    ("jaxmotion.models.dlow", "jaxmotion.models.cvae"),
+    ("jaxmotion.models.mojo", "jaxmotion.models.cvae"),
+    ("jaxmotion.models.mojo", "jaxmotion.models.dlow"),
+})  # fmt: skip
 
 
 class Import(NamedTuple):
@@ -209,6 +232,60 @@ def find_cycle(edges: dict[str, set[str]]) -> list[str] | None:
     return None
 
 
+def cycles(edges: dict[str, set[str]]) -> list[list[str]]:
+    """Returns one cycle `[a, b, ..., a]` per strongly connected component of more than one node (Tarjan's algorithm)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    components: list[set[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in sorted(edges.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = {stack.pop()}
+            while v not in comp:
+                comp.add(stack.pop())
+            if len(comp) > 1:
+                components.append(comp)
+
+    for v in sorted(edges):
+        if v not in index:
+            visit(v)
+    return [find_cycle({a: edges.get(a, set()) & comp for a in comp}) for comp in components]
+
+
+def module_edges(imports: list[Import]) -> tuple[dict[str, set[str]], dict[tuple[str, str], list[Import]]]:
+    """Returns the module graph of every import (function-level ones included), and the imports behind each edge."""
+    edges: dict[str, set[str]] = {}
+    why: dict[tuple[str, str], list[Import]] = {}
+    for imp in imports:
+        if imp.importer != imp.target:
+            edges.setdefault(imp.importer, set()).add(imp.target)
+            why.setdefault((imp.importer, imp.target), []).append(imp)
+    return edges, why
+
+
+def model_imports_against_layers(imports: list[Import]) -> list[str]:
+    """Returns each import of a model file that reaches above the models, or into a model its paper does not build on."""
+    bad = []
+    for imp in imports:
+        a, b = imp.importer, imp.target
+        if not a.startswith("jaxmotion.models.") or a == b:
+            continue
+        if any(b == p or b.startswith(p + ".") for p in ABOVE_MODELS):
+            bad.append(f"{imp.where()}: {a} imports {b}, above the models")
+        elif b.startswith("jaxmotion.models.") and (a, b) not in MODEL_ON_MODEL:
+            bad.append(f"{imp.where()}: {a} imports {b}, another model (MODEL_ON_MODEL lists where a paper builds on one)")
+    return bad
+
+
 def _unit_edges(imports: list[Import]) -> tuple[dict[str, set[str]], dict[tuple[str, str], list[Import]]]:
     edges: dict[str, set[str]] = {}
     why: dict[tuple[str, str], list[Import]] = {}
@@ -258,16 +335,17 @@ def test_no_cycle_between_subpackages(scanned):
     assert cycle is None, "import cycle between jaxmotion's subpackages:\n" + _explain(cycle, why)
 
 
-def test_no_cycle_between_modules_at_import_time(scanned):
+def test_no_cycle_between_modules(scanned):
     _, imports, _ = scanned
-    edges: dict[str, set[str]] = {}
-    why: dict[tuple[str, str], list[Import]] = {}
-    for imp in imports:
-        if imp.top_level and imp.importer != imp.target:
-            edges.setdefault(imp.importer, set()).add(imp.target)
-            why.setdefault((imp.importer, imp.target), []).append(imp)
-    cycle = find_cycle(edges)
-    assert cycle is None, "module-level import cycle:\n" + _explain(cycle, why)
+    edges, why = module_edges(imports)
+    found = cycles(edges)
+    assert not found, "import cycles between modules (function-level imports included):\n" + "\n".join(_explain(c, why) for c in found)
+
+
+def test_models_import_only_downward(scanned):
+    _, imports, _ = scanned
+    bad = model_imports_against_layers(imports)
+    assert not bad, "model files importing against the layers:\n" + "\n".join(bad)
 
 
 def test_layers_import_each_other_only_at_module_level(scanned):
@@ -288,6 +366,12 @@ def test_no_private_name_imported_across_subpackages(scanned):
 # The checker itself, on a small package with every fault: it must see each one.
 
 
+def _write(pkg: Path, files: dict[str, str]) -> None:
+    for name, text in files.items():
+        (pkg / name).parent.mkdir(parents=True, exist_ok=True)
+        (pkg / name).write_text(text)
+
+
 def test_checker_finds_cycles_and_private_imports(tmp_path):
     pkg = tmp_path / "jaxmotion"
     files = {
@@ -304,9 +388,7 @@ def test_checker_finds_cycles_and_private_imports(tmp_path):
         "a.py": "from jaxmotion import b\n",
         "b.py": "from . import a\n",
     }
-    for name, text in files.items():
-        (pkg / name).parent.mkdir(parents=True, exist_ok=True)
-        (pkg / name).write_text(text)
+    _write(pkg, files)
     modules, imports, private = scan(pkg)
     assert "jaxmotion.formats" in modules and "jaxmotion.data.datasets" in modules
     edges, _ = _unit_edges(imports)
@@ -323,6 +405,50 @@ def test_checker_finds_cycles_and_private_imports(tmp_path):
     assert {("jaxmotion.a", "jaxmotion.b"), ("jaxmotion.b", "jaxmotion.a")} <= top
 
 
+def test_checker_finds_function_level_cycles_and_model_imports(tmp_path):
+    pkg = tmp_path / "jaxmotion"
+    files = {
+        "__init__.py": "",
+        "eval/__init__.py": "",
+        "eval/metrics.py": "from jaxmotion.nn import layers\n",
+        "nn/__init__.py": "from jaxmotion.nn.layers import Dense\n",  # an __init__ importing its submodule
+        "nn/layers.py": "from jaxmotion.nn.init import rule\nDense = 1\n",
+        "nn/init.py": "rule = 0\n",
+        "train/__init__.py": "",
+        "train/loop.py": "",
+        "models/__init__.py": "",
+        "models/cvae.py": "",
+        "models/dlow.py": "from jaxmotion.models.cvae import x\n",
+        "models/a.py": "from jaxmotion.nn import layers\n\n\ndef f():\n    from jaxmotion.eval import metrics\n",
+        "models/b.py": "from . import a\nimport jaxmotion.train.loop\n",
+        "data/__init__.py": "",
+        "data/x.py": "import jaxmotion.data.y\n",
+        "data/y.py": "def g():\n    from jaxmotion.data.x import h\n",
+        "data/z.py": "from jaxmotion.data.x import h\n",
+        "body/__init__.py": "from jaxmotion.body.fit import fit\n",
+        "body/fit.py": "from jaxmotion.body.params import p\nfit = 1\n",
+        "body/params.py": "p = 0\n",
+    }
+    _write(pkg, files)
+    _, imports, _ = scan(pkg)
+    edges, why = module_edges(imports)
+    assert edges["jaxmotion.body.fit"] == {"jaxmotion.body.params"}  # no edge to the package's __init__
+    assert edges["jaxmotion.models.a"] == {"jaxmotion.nn.layers", "jaxmotion.eval.metrics"}
+    assert cycles(edges) == [["jaxmotion.data.x", "jaxmotion.data.y", "jaxmotion.data.x"]]  # the only cycle
+    assert _explain(cycles(edges)[0], why).splitlines()[2].endswith("data/y.py:2: from jaxmotion.data.x import h (in a function)")
+    assert model_imports_against_layers(imports) == [
+        f"{pkg / 'models/a.py'}:5: import jaxmotion.eval.metrics (in a function): jaxmotion.models.a imports jaxmotion.eval.metrics, above the models",
+        f"{pkg / 'models/b.py'}:1: import jaxmotion.models.a (module level): jaxmotion.models.b imports jaxmotion.models.a, "
+        "another model (MODEL_ON_MODEL lists where a paper builds on one)",
+        f"{pkg / 'models/b.py'}:2: import jaxmotion.train.loop (module level): jaxmotion.models.b imports jaxmotion.train.loop, above the models",
+    ]
+    (pkg / "body/params.py").write_text("from jaxmotion.body import fit\n")  # a name of the __init__ (here a module too)
+    (pkg / "body/fit.py").write_text("from jaxmotion.body import helper\n")  # a name of the __init__: an edge to it
+    _, imports, _ = scan(pkg)
+    found = cycles(module_edges(imports)[0])
+    assert ["jaxmotion.body", "jaxmotion.body.fit", "jaxmotion.body"] in found and len(found) == 2
+
+
 def main() -> int:
     pkg = package_dir()
     modules, imports, private = scan(pkg)
@@ -334,13 +460,13 @@ def main() -> int:
         print(f"  {a} -> {', '.join(deps)}")
     cycle = find_cycle(edges)
     print("unit cycle:", _explain(cycle, why) if cycle else "none")
-    mod_edges: dict[str, set[str]] = {}
-    for imp in imports:
-        if imp.top_level and imp.importer != imp.target:
-            mod_edges.setdefault(imp.importer, set()).add(imp.target)
-    print("module-level module cycle:", " -> ".join(find_cycle(mod_edges) or ["none"]))
+    mod_edges, mod_why = module_edges(imports)
+    mod_cycles = cycles(mod_edges)
+    print("module cycles:", "\n".join(_explain(c, mod_why) for c in mod_cycles) if mod_cycles else "none")
+    bad = model_imports_against_layers(imports)
+    print("model imports against the layers:", "\n  ".join([""] + bad) if bad else "none")
     print("private names across units:", "\n  ".join([""] + private) if private else "none")
-    return 1 if cycle or find_cycle(mod_edges) or private else 0
+    return 1 if cycle or mod_cycles or private or bad else 0
 
 
 if __name__ == "__main__":

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 # CMD and FID are off in this file's configs (`action_metrics=False`): tests/test_action_metrics.py covers them.
+from jaxmotion.eval import metrics
 from jaxmotion.data.synthetic import PARENTS
 from jaxmotion.models import motionmap as mm
 
@@ -43,7 +44,7 @@ def test_motionmap_mm_sets_match_brute_force_and_include_self():
     base = rng.normal(size=(3, 3, 48)).astype(np.float32) * 0.3
     desc = np.concatenate([base + 0.002 * rng.normal(size=base.shape) for _ in range(4)]).astype(np.float32)
     thr = 0.05
-    sets = mm.motionmap_mm_sets(desc, thr, PARENTS, max_chunk_elems=1000)  # many small chunks
+    sets = metrics.motionmap_mm_sets(desc, thr, PARENTS, max_chunk_elems=1000)  # many small chunks
     idx, mask = np.asarray(sets.idx), np.asarray(sets.mask)
     for i in range(len(desc)):
         moved = np.asarray(mm.motion_transfer(jnp.asarray(desc), jnp.asarray(desc[i, -1]), PARENTS))
@@ -55,7 +56,7 @@ def test_motionmap_mm_sets_match_brute_force_and_include_self():
     one = np.asarray(mm.motion_transfer(jnp.asarray(desc), jnp.asarray(desc[:, -1:]), PARENTS))
     ref = one * 1.2
     desc = one
-    r = mm.motionmap_mm_sets(desc[:3], thr, PARENTS, reference_desc=ref)
+    r = metrics.motionmap_mm_sets(desc[:3], thr, PARENTS, reference_desc=ref)
     assert all(i in set(np.asarray(r.idx)[i, np.asarray(r.mask)[i]]) for i in range(3))
 
 
@@ -157,7 +158,7 @@ def test_mm_errors_transferred_equals_plain_errors_on_one_skeleton():
     futures = np.asarray(mm.motion_transfer(jnp.asarray(y), jnp.asarray(pose[0]), PARENTS))  # all on pose's skeleton
     pred = jnp.asarray(futures[None, :2].repeat(3, 0))
     idx, mask = jnp.array([[0, 1], [2, 3], [4, 0]]), jnp.array([[True, True], [True, False], [True, False]])
-    a, f = mm.mm_errors_transferred(pred, jnp.asarray(pose), jnp.asarray(y), idx, mask, PARENTS)
+    a, f = metrics.mm_errors_transferred(pred, jnp.asarray(pose), jnp.asarray(y), idx, mask, PARENTS)
     # The blocked Gram kernel (metrics._mm_window) rounds a zero distance to about sqrt(eps) * |x|
     # (|x| ~ 10 for these random chained links), so "zero" is zero to 5e-3 here.
     assert float(a[0]) == pytest.approx(0.0, abs=5e-3) and float(f[0]) == pytest.approx(0.0, abs=5e-3)

@@ -134,8 +134,8 @@ def test_report_draws_the_methods_pictures_of_the_window_it_draws(tmp_path, monk
                         pictures=pictures)
     monkeypatch.setitem(method._REGISTRY, "toy_pictures", toy)
     # The still and the GIF are other tests' business (and slow): stand-ins that write the still's file.
-    monkeypatch.setattr("jaxmotion.tools.viz.plot_futures", lambda x, p, y, parents, path, title: (path.write_bytes(b""), path)[1])
-    monkeypatch.setattr("jaxmotion.tools.animate.animate_futures", lambda *a, **k: None)
+    monkeypatch.setattr("jaxmotion.pictures.viz.plot_futures", lambda x, p, y, parents, path, title: (path.write_bytes(b""), path)[1])
+    monkeypatch.setattr("jaxmotion.pictures.animate.animate_futures", lambda *a, **k: None)
     cfg = Config(name="t", method="toy_pictures", eval_k=(2,))
     png = experiment.report(cfg, prep, {"p": 1}, tmp_path)
     assert png == tmp_path / "samples.png" and png.exists()

@@ -14,7 +14,7 @@ ROOT_MODULES = {"__init__", "cli", "config", "dct", "diversity", "errors", "expe
 def test_the_root_holds_only_the_layers_folders_and_its_own_modules():
     root = Path(jaxmotion.__file__).parent
     assert {p.stem for p in root.glob("*.py")} == ROOT_MODULES
-    for folder in ("formats", "data", "body", "nn", "models", "methods", "train", "eval", "tools"):
+    for folder in ("formats", "data", "body", "nn", "models", "methods", "train", "eval", "pictures", "tools"):
         assert (root / folder / "__init__.py").is_file(), folder
 
 

@@ -11,18 +11,20 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxmotion.config import _CHOICES, Config, validate
+from jaxmotion.config import Config, validate
 from jaxmotion.errors import ConfigError
 from jaxmotion.models import dlow, divsamp, gsps
 from jaxmotion.nn import precision as P
+from jaxmotion.nn.execution import Execution
 
 
-def test_config_choices_are_the_modules():
-    assert _CHOICES["precision"] == P.PRECISIONS
+def test_an_unknown_precision_is_refused_by_the_config_the_execution_and_the_product():
     with pytest.raises(ConfigError, match="precision must be one of"):
         validate(dataclasses.replace(Config(), precision="fp16"))
     with pytest.raises(ValueError, match="precision must be one of"):
         P.matmul(jnp.ones((2, 3)), jnp.ones((3, 4)), "fp16")
+    with pytest.raises(ValueError, match="Execution.precision must be one of"):
+        Execution(precision="fp16")
 
 
 def test_bf16_product_rounds_the_operands_and_accumulates_in_float32():
@@ -124,7 +126,7 @@ def test_dlow_models_compute_in_bf16_with_the_same_parameters():
     x = jax.random.normal(jax.random.key(0), (4, 8, 12))
     y = jax.random.normal(jax.random.key(1), (4, 10, 12))
     c = dlow.CVAEConfig(nz=8, nh_rnn=16, nh_mlp=(32, 16))
-    m32, mbf = dlow.cvae_model(c, 12, 10), dlow.cvae_model(c, 12, 10, "bf16")
+    m32, mbf = dlow.cvae_model(c, 12, 10), dlow.cvae_model(c, 12, 10, Execution(precision="bf16"))
     p = jax.jit(m32.init)(jax.random.key(2), x, y)
     assert jax.tree.structure(p) == jax.tree.structure(jax.eval_shape(mbf.init, jax.random.key(2), x, y))
     z = jax.random.normal(jax.random.key(3), (4, 5, 8))
@@ -134,7 +136,7 @@ def test_dlow_models_compute_in_bf16_with_the_same_parameters():
     assert not np.array_equal(outbf, out32)
     assert _bf16_dots(lambda z: dlow.decode_k(mbf, p, x, z), z) > 0
     assert _bf16_dots(lambda z: dlow.decode_k(m32, p, x, z), z) == 0
-    q = dlow.q_model(dlow.QConfig(nh_rnn=16, nh_mlp=(32,)), 8, 5, "bf16")
+    q = dlow.q_model(dlow.QConfig(nh_rnn=16, nh_mlp=(32,)), 8, 5, Execution(precision="bf16"))
     qp = jax.jit(q.init)(jax.random.key(4), x, jnp.zeros((4, 8)))
     g = jax.jit(jax.grad(lambda qp: jnp.sum(q.apply(qp, x, jnp.ones((4, 8)))[0] ** 2)))(qp)
     assert all(bool(jnp.all(jnp.isfinite(v))) and v.dtype == jnp.float32 for v in jax.tree.leaves(g))
@@ -143,15 +145,15 @@ def test_dlow_models_compute_in_bf16_with_the_same_parameters():
 def test_divsamp_and_gsps_graph_convolutions_compute_in_bf16():
     d = divsamp.DivSampConfig(n_dct=4, hidden=16, nz=8, cvae_residual=1, sampler_residual=1, num_bases=5, base_dim=8, nh=8)
     cx = jax.random.normal(jax.random.key(0), (3, 6, 12))
-    m32, mbf = divsamp.cvae_from_config(d), divsamp.cvae_from_config(d, "bf16")
+    m32, mbf = divsamp.cvae_from_config(d), divsamp.cvae_from_config(d, Execution(precision="bf16"))
     v = jax.jit(lambda k: m32.init(k, cx, cx, jax.random.key(2), train=False))(jax.random.key(1))
     a, b = (jax.jit(lambda cx, m=m: m.apply(v, cx, cx, train=False)[0])(cx) for m in (m32, mbf))
     np.testing.assert_allclose(b, a, atol=0.05 * float(jnp.abs(a).max()))
     assert _bf16_dots(lambda cx: mbf.apply(v, cx, cx, train=False)[0], cx) > 0
-    s = divsamp.sampler_from_config(d, "bf16")
+    s = divsamp.sampler_from_config(d, Execution(precision="bf16"))
     sv = jax.jit(lambda k: s.init(k, cx, jax.random.key(4), 5, train=False))(jax.random.key(3))
     assert bool(jnp.all(jnp.isfinite(jax.jit(lambda cx: s.apply(sv, cx, jax.random.key(5), 5, train=False)[0])(cx))))
-    gen = gsps.GSPSGenerator(parts=((0, 1, 2), (3, 4, 5)), hidden=16, num_stage=1, precision="bf16")
+    gen = gsps.GSPSGenerator(parts=((0, 1, 2), (3, 4, 5)), hidden=16, num_stage=1, execution=Execution(precision="bf16"))
     z = jax.random.normal(jax.random.key(6), (3, 2, 4))
     g32 = gsps.GSPSGenerator(parts=((0, 1, 2), (3, 4, 5)), hidden=16, num_stage=1)
     gv = jax.jit(lambda k: g32.init(k, cx, z, train=False))(jax.random.key(7))

@@ -329,7 +329,7 @@ def test_divsamp_decoding_and_sampling_match_in_eval_mode(divsamp_pair):
     jz, jmean, jlv = js.apply(sv, cx, key, K, train=False)
     rel_close(jz, tz)
     rel_close(jlv, tlv)
-    rel_close(divsamp.sample_divsamp(jc, v, js, sv, x, key, K, t_pred=T_PRED, test_eps="shared"), ty)
+    rel_close(divsamp.decode_k(jc, v, cx, jz, t_his=T_HIS, t_pred=T_PRED), ty)  # one eps per window, as in training
     # The release's evaluation (the default): K independent eps per window.
     with torch.no_grad():
         ty = tdiv.sample_divsamp(tc, ts, tt(x), tt(w), tt(jax.random.normal(k_eps, (B, K, NZ))), t_pred=T_PRED)

@@ -19,7 +19,7 @@ from jaxmotion.tools import viewer
 from jaxmotion.cli import main
 from jaxmotion.config import load_config
 from jaxmotion.data.synthetic import PARENTS
-from jaxmotion.tools.viz import frames_to_joints, view_axes
+from jaxmotion.pictures.viz import frames_to_joints, view_axes
 
 CHROMIUM = next((p for p in map(shutil.which, ("chromium", "chromium-browser", "google-chrome")) if p), None)
 MAGENTA = np.array([0xE6, 0x00, 0x7E])  # viewer.TRUTH_COLOR

@@ -52,7 +52,7 @@ from frame 180 every 120 frames) and MOJO one window per non-overlapping 4 s chu
 `poses`, `trans` or `betas` is a `DataError` (MOJO skips such files: `skip_nonfinite=True`).
 
 Joint / marker positions are computed once per sub-dataset and cached in `cache_dir` (default
-`~/.cache/jaxmotion/amass`, beside `datasets.default_cache_dir()`), keyed by protocol, options,
+`~/.cache/jaxmotion/amass`, beside `bandai.default_cache_dir()`), keyed by protocol, options,
 each file's path, size and mtime, and the model file(s) and marker ids.
 """
 
@@ -73,8 +73,9 @@ from jaxmotion.body.params import BodyParams
 from jaxmotion.body.rotation import axis_angle_to_matrix, matrix_to_rot6d
 from jaxmotion.body.smplx import NUM_JOINTS, SMPLH_NUM_JOINTS, SmplxBody, load_smplx
 from jaxmotion.data.augment import left_right_pairs
-from jaxmotion.data.datasets import check_finite, default_cache_dir
-from jaxmotion.data.types import MotionDataset, Sequence, Skeleton
+from jaxmotion.data.bandai import default_cache_dir
+from jaxmotion.data.markers import marker_skeleton
+from jaxmotion.data.types import MotionDataset, Sequence, Skeleton, check_finite
 from jaxmotion.errors import DataError
 from jaxmotion.formats.atomic import savez_atomic
 
@@ -453,8 +454,6 @@ def load_amass(
         "cache": caches,
     }
     if mojo:
-        from jaxmotion.data.markers import marker_skeleton  # imported here: markers imports this package's loaders
-
         names = tuple(vertices)
         info |= {"frames": "global", "ground": "future_heel_min", "point_names": names, "marker_set": set_name}
         if model_path.is_file():  # a body for recursive projection (`methods.mojo`): only when one model drives all

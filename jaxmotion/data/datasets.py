@@ -20,8 +20,6 @@ import os
 import pickle
 import pickletools
 import re
-import shutil
-import tarfile
 import zipfile
 from collections.abc import Callable
 from pathlib import Path
@@ -29,7 +27,10 @@ from pathlib import Path
 import numpy as np
 
 from jaxmotion.data.augment import left_right_pairs
-from jaxmotion.data.types import MotionDataset, Sequence, Skeleton
+from jaxmotion.data.bandai import (  # noqa: F401 (BANDAI_TARBALL and default_cache_dir are public here too)
+    BANDAI_NAME, BANDAI_PROTOCOL, BANDAI_TARBALL, BANDAI_TEST_STYLES, BANDAI_TRAIN_STYLES, bandai_clip_dir, default_cache_dir,
+)  # fmt: skip
+from jaxmotion.data.types import MotionDataset, Sequence, Skeleton, check_finite
 from jaxmotion.errors import DataError
 from jaxmotion.formats.bvh import Bvh, forward_kinematics, guess_scale, is_ground_skeleton, read_bvh
 
@@ -81,22 +82,6 @@ HUMANEVA_DROPPED = (
 )
 
 # ----------------------------------------------------------------------------------------------
-# Bandai-Namco-2 (BVH, centimetres, Y up)
-
-BANDAI_TARBALL = "bandai2_dev.tar.xz"
-BANDAI_TRAIN_STYLES = ("active", "exhausted", "feminine", "masculine")
-BANDAI_TEST_STYLES = ("normal",)
-# PROTOCOL sec. 3, shared by the joint (`load_bandai`) and marker (`load_bandai_markers`) datasets.
-BANDAI_PROTOCOL = {"fps": 30.0, "t_his": 15, "t_pred": 60, "mm_threshold": 0.5}
-# A clip's file stem: `dataset-2_{content}_{style}_{id}`.
-BANDAI_NAME = re.compile(r"^dataset-2_(?P<content>[^_]+)_(?P<style>[^_]+)_(?P<id>\d+)$")
-
-
-def default_cache_dir() -> Path:
-    """Returns the folder the Bandai tarball is extracted into: `$XDG_CACHE_HOME/jaxmotion/bandai2`."""
-    return Path(os.environ.get("XDG_CACHE_HOME", "~/.cache")).expanduser() / "jaxmotion" / "bandai2"
-
-
 # ----------------------------------------------------------------------------------------------
 # npz datasets
 
@@ -218,15 +203,6 @@ def _npz_sequences(
     return out
 
 
-def check_finite(path: str | os.PathLike, positions: np.ndarray, what: str = "positions") -> None:
-    """Raises `DataError` naming `path`, the frame and the joint of the first NaN/inf in `positions` (F, J, 3)."""
-    bad = ~np.isfinite(positions)
-    if bad.any():
-        f, j = (int(v) for v in np.argwhere(bad)[0][:2])
-        n = int(bad.any(axis=-1).sum())
-        raise DataError(path, f"{what}: non-finite value {positions[f, j][bad[f, j]][0]} at frame {f}, joint {j} ({n} non-finite joint positions in all)")
-
-
 def _h36m_from_dict(data: dict, path: Path) -> MotionDataset:
     seq = lambda subjects: _npz_sequences(data, path, subjects, 32, 50.0, H36M_KEPT_JOINTS)  # noqa: E731
     names, parents = H36M_JOINT_NAMES, H36M_PARENTS
@@ -341,44 +317,6 @@ def load_bandai(root: str | os.PathLike, cache_dir: str | os.PathLike | None = N
             "skipped_clips": skipped,
         },
     )
-
-
-def bandai_clip_dir(root: Path, cache_dir: str | os.PathLike | None) -> Path:
-    """Returns the folder of extracted clips, extracting the tarball into the cache if needed."""
-    tarball = root / BANDAI_TARBALL
-    if not tarball.is_file():
-        if not root.is_dir():
-            raise FileNotFoundError(f"{root}: no such folder (expected {BANDAI_TARBALL} or extracted clips)")
-        return root
-    cache = Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()
-    done = cache / ".extracted"
-    stamp = str(tarball.stat().st_size)
-    if done.is_file() and done.read_text().strip() == stamp:
-        return cache
-    if cache.exists() and not done.is_file() and any(cache.iterdir()):
-        # Never delete a folder this loader did not fill.
-        raise ValueError(f"{cache}: cache folder exists but holds no extraction of {tarball}; remove it")
-    # Extract into a private folder and rename, so an interrupted or concurrent extraction never
-    # leaves a half-filled cache that a later run would trust.
-    cache.parent.mkdir(parents=True, exist_ok=True)
-    tmp = cache.parent / f".{cache.name}.tmp-{os.getpid()}"
-    try:
-        with tarfile.open(tarball) as tf:
-            tf.extractall(tmp, filter="data")
-    except (tarfile.TarError, EOFError, OSError) as e:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise DataError(tarball, f"cannot extract ({type(e).__name__}: {e})") from e
-    (tmp / ".extracted").write_text(stamp)
-    if cache.exists():  # empty, or a stale extraction of an older tarball
-        shutil.rmtree(cache, ignore_errors=True)
-    try:
-        tmp.rename(cache)
-    except OSError:
-        shutil.rmtree(tmp, ignore_errors=True)
-        if not (done.is_file() and done.read_text().strip() == stamp):
-            raise
-        # Another process finished the same extraction first; use theirs.
-    return cache
 
 
 def _bandai_labels(root: Path, clip_dir: Path) -> tuple[list[str] | None, list[str] | None]:
@@ -564,8 +502,7 @@ def load_dataset(spec: str | os.PathLike, **options) -> MotionDataset:
     if path.is_dir():
         if (path / BANDAI_TARBALL).is_file() or any(path.glob("dataset-2_*.bvh")):
             if "markers" in options:
-                # Imported here: `markers` imports this module (the Bandai protocol and clip folder), and it
-                # pulls in `jaxmotion.body` and jax, which the joint loaders do not need.
+                # Imported here: `markers` pulls in `jaxmotion.body` and jax, which the joint loaders do not need.
                 from jaxmotion.data.markers import load_bandai_markers
 
                 options = dict(options)

@@ -8,7 +8,7 @@ Each clip's BVH rotations and root translation are the skeleton body's parameter
 Bandai skeleton, `bandai` = CMU-41 markers), so every frame is a valid body by construction.
 The command line reaches the dataset through a config's `data_options={"markers": "bandai"}`
 (`datasets.load_dataset`). This is a dataset loader beside `load_bandai` (the same clips, split and
-protocol, `datasets.BANDAI_*`); it builds on the body model (`jaxmotion.body`), which sits below
+protocol, `bandai.BANDAI_*`); it builds on the body model (`jaxmotion.body`), which sits below
 `data/` and never imports it.
 """
 
@@ -23,7 +23,7 @@ import numpy as np
 
 from jaxmotion.body.markersets import resolve_roles
 from jaxmotion.body.skeleton import params_from_bvh, skeleton_body_from_bvh
-from jaxmotion.data.datasets import (
+from jaxmotion.data.bandai import (
     BANDAI_NAME, BANDAI_PROTOCOL, BANDAI_TEST_STYLES, BANDAI_TRAIN_STYLES, bandai_clip_dir, default_cache_dir,
 )  # fmt: skip
 from jaxmotion.data.types import MotionDataset, Sequence, Skeleton

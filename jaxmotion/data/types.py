@@ -1,12 +1,15 @@
-"""Plain containers shared by every loader: a skeleton, a sequence, a dataset split."""
+"""Plain containers shared by every loader (a skeleton, a sequence, a dataset split), and their finite-values check."""
 
 from __future__ import annotations
 
 import dataclasses
+import os
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+
+from jaxmotion.errors import DataError
 
 
 @dataclasses.dataclass(frozen=True)
@@ -73,3 +76,12 @@ class MotionDataset:
     @property
     def dim(self) -> int:
         return (self.skeleton.num_joints - 1) * 3
+
+
+def check_finite(path: str | os.PathLike, positions: np.ndarray, what: str = "positions") -> None:
+    """Raises `DataError` naming `path`, the frame and the joint of the first NaN/inf in `positions` (F, J, 3)."""
+    bad = ~np.isfinite(positions)
+    if bad.any():
+        f, j = (int(v) for v in np.argwhere(bad)[0][:2])
+        n = int(bad.any(axis=-1).sum())
+        raise DataError(path, f"{what}: non-finite value {positions[f, j][bad[f, j]][0]} at frame {f}, joint {j} ({n} non-finite joint positions in all)")

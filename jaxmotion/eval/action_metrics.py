@@ -48,6 +48,7 @@ from jaxmotion.data.types import MotionDataset
 from jaxmotion.data.windows import canonicalise_windows, split_frames, test_windows
 from jaxmotion.models import action_classifier as ac
 from jaxmotion.models.action_classifier import ClassifierConfig
+from jaxmotion.train.action_classifier import train as train_classifier
 
 CACHE_VERSION = 1  # bump when training or the file layout changes: old cache entries are then ignored
 
@@ -365,7 +366,7 @@ def dataset_classifier(
         log(f"action classifier ({ds.name}): training on {len(seq_index)} training windows, {len(classes)} classes, "
             f"{config.num_steps} steps (once; cached in {folder})")
     t0 = time.perf_counter()
-    params = ac.train(sample_batch, len(classes), config, log=log, name=f"action classifier ({ds.name})")
+    params = train_classifier(sample_batch, len(classes), config, log=log, name=f"action classifier ({ds.name})")
     train_s = time.perf_counter() - t0
     test_idx = np.asarray([index[str(c)] for c in test_labels])
     acc = ac.accuracy(model, params, test_y, test_idx)

@@ -33,7 +33,9 @@ from beartype import beartype
 from jax import lax
 from jaxtyping import Array, ArrayLike, Bool, Float, Int, jaxtyped
 
+from jaxmotion.body.bones import bone_lengths, frame_parents, motion_transfer  # noqa: F401 (public here too)
 from jaxmotion.formats.atomic import savez_atomic
+from jaxmotion.losses import gram
 
 METRIC_NAMES = ("APD", "ADE", "FDE", "MMADE", "MMFDE", "ADE-m", "FDE-m")
 
@@ -120,24 +122,6 @@ def _safe_sqrt(d2: Float[Array, "..."]) -> Float[Array, "..."]:
     return jnp.where(pos, jnp.sqrt(jnp.where(pos, d2, 1.0)), 0.0)
 
 
-def _gram(a: Float[Array, "... p f"], b: Float[Array, "... q f"]) -> Float[Array, "... p q"]:
-    # HIGHEST: float32 products even where the default would be TF32 / bfloat16 (GPU, TPU).
-    return jnp.einsum("...pf,...qf->...pq", a, b, precision=lax.Precision.HIGHEST)
-
-
-def pairwise_sq_distances(
-    a: Float[Array, "... p f"], b: Float[Array, "... q f"], *, a_sq: Float[Array, "... p"] | None = None,
-) -> Float[Array, "... p q"]:
-    """Returns `||a_i - b_j||^2` for every pair, as `|a|^2 + |b|^2 - 2 a.b` (one product), clipped at 0.
-
-    Rounding grows with the norms, not the distances: take both sides relative to a common point near
-    them first (a true future, one of the samples). `a_sq`: `sum(a * a, -1)` where the caller has it.
-    """
-    a_sq = jnp.sum(a * a, axis=-1) if a_sq is None else a_sq
-    b_sq = jnp.sum(b * b, axis=-1)
-    return jnp.maximum(a_sq[..., :, None] + b_sq[..., None, :] - 2.0 * _gram(a, b), 0.0)
-
-
 # Samples per block of APD's product: beyond one block only the blocks on and above the diagonal
 # are computed, the others being their transposes (K = 1000: 36 products of 125 x 125, not 64).
 APD_BLOCK = 128
@@ -155,12 +139,12 @@ def _apd_window(x: Float[Array, "k f"]) -> Float[Array, ""]:
     size = -(-k // nb)
     xb = jnp.pad(x, ((0, nb * size - k), (0, 0))).reshape(nb, size, -1)
     valid = (jnp.arange(nb * size) < k).reshape(nb, size)
-    diag = [_gram(xb[i], xb[i]) for i in range(nb)]
+    diag = [gram(xb[i], xb[i]) for i in range(nb)]
     sq = [jnp.diagonal(g) for g in diag]
     total = jnp.float32(0)
     for i in range(nb):
         for j in range(i, nb):
-            g = diag[i] if i == j else _gram(xb[i], xb[j])
+            g = diag[i] if i == j else gram(xb[i], xb[j])
             d = _safe_sqrt(jnp.maximum(sq[i][:, None] + sq[j][None, :] - 2.0 * g, 0.0))
             keep = valid[i][:, None] & valid[j][None, :]
             if i == j:
@@ -288,80 +272,8 @@ def _left_packed(rows: list[np.ndarray], cols: list[np.ndarray], n: int) -> tupl
 
 
 # --------------------------------------------------------------------------------------------
-# The skeleton's bones (DivSamp's and GSPS's limb losses, motion transfer below).
-
-
-def bone_matrix(parents: tuple[int, ...]) -> np.ndarray:
-    """Returns the `(D, D)` matrix `B` (D = 3 (J - 1)) with `frames @ B` = the bone vectors `p_i - p_parent(i)`, i = 1..J-1.
-
-    `frames` are root-relative and root-dropped (PROTOCOL sec. 1: the root sits at the origin, so a
-    bone from the root is its child's position). `B` holds only 0 and +-1, so the product is exactly
-    the subtraction. It replaces two gathers over the joint axis, whose gradients are scatter-adds:
-    in GSPS's generator step (1,600 futures) those took ~5% of the step.
-    """
-    parents = tuple(int(p) for p in parents)
-    bad = [i for i in range(1, len(parents)) if not 0 <= parents[i] < len(parents) or parents[i] == i]
-    if bad:
-        raise ValueError(f"bone_matrix: joint {bad[0]}'s parent is {parents[bad[0]]}; every joint but the root (joint 0) "
-                         f"needs another joint of the {len(parents)} as its parent")
-    m = np.zeros((len(parents) - 1,) * 2, np.float32)  # m[i - 1, k - 1]: joint k's weight in bone i
-    for i in range(1, len(parents)):
-        m[i - 1, i - 1] = 1.0
-        if parents[i] > 0:
-            m[i - 1, parents[i] - 1] = -1.0
-    return np.kron(m.T, np.eye(3, dtype=np.float32))
-
-
-def bone_vectors(frames: Float[ArrayLike, "... d"], parents: tuple[int, ...]) -> Float[Array, "... b 3"]:
-    """Returns the `(..., J - 1, 3)` bone vectors `p_i - p_parent(i)` of root-relative, root-dropped frame vectors."""
-    frames = jnp.asarray(frames)
-    if frames.shape[-1] != 3 * (len(parents) - 1):
-        raise ValueError(f"bone_vectors: frames of {frames.shape[-1]} values do not fit a skeleton of {len(parents)} joints "
-                         f"(root-dropped frames have 3 (J - 1) = {3 * (len(parents) - 1)})")
-    # HIGHEST: exact on every backend (a GPU's or TPU's default float32 product rounds its operands).
-    v = jnp.matmul(frames, jnp.asarray(bone_matrix(parents)), precision=lax.Precision.HIGHEST)
-    return v.reshape(v.shape[:-1] + (-1, 3))
-
-
-def bone_lengths(frames: Float[ArrayLike, "... d"], parents: tuple[int, ...]) -> Float[Array, "... b"]:
-    """Returns the `J - 1` bone lengths of root-relative, root-dropped frame vectors (PROTOCOL sec. 1)."""
-    return jnp.linalg.norm(bone_vectors(frames, parents), axis=-1)
-
-
-# --------------------------------------------------------------------------------------------
 # MotionMap's multimodal ground truth (PROTOCOL sec. 2 option; MotionMap appendix A): candidates
 # are motion-transferred onto the window's skeleton before they are compared, and so are their futures.
-
-
-def frame_parents(parents: tuple[int, ...]) -> tuple[int, ...]:
-    """Returns the parent of every frame joint (skeleton joint j + 1), -1 where the parent is the dropped root."""
-    parents = tuple(int(p) for p in parents)
-    if parents[0] != -1 or any(not 0 <= p < j for j, p in enumerate(parents) if j):
-        raise ValueError(f"motion transfer needs joint 0 as the root and every parent before its child, got parents {parents}")
-    return tuple(p - 1 for p in parents[1:])
-
-
-def motion_transfer(
-    source: Float[Array, "*s d"], target: Float[Array, "*t d"], parents: tuple[int, ...]
-) -> Float[Array, "*o d"]:
-    """Returns `source`'s motion on `target`'s skeleton (MotionMap appendix A), broadcast over leading axes.
-
-    Every link keeps the direction it has in `source` (its spherical angles) and takes the length it
-    has in `target`; joints are rebuilt parent to child from the root at the origin. `parents` is
-    the skeleton's (root first, dropped from the frame vectors).
-    """
-    fp = frame_parents(parents)
-    bones_src, bones_tgt = bone_vectors(source, parents), bone_vectors(target, parents)
-    shape = jnp.broadcast_shapes(bones_src.shape[:-2], bones_tgt.shape[:-2]) + (3,)
-    out: list = []
-    for j, p in enumerate(fp):
-        v_src, v_tgt = bones_src[..., j, :], bones_tgt[..., j, :]
-        norm = jnp.linalg.norm(v_src, axis=-1, keepdims=True)
-        direction = v_src / jnp.maximum(norm, 1e-12)
-        length = jnp.linalg.norm(v_tgt, axis=-1, keepdims=True)
-        base = out[p] if p >= 0 else jnp.zeros(shape, source.dtype)
-        out.append(jnp.broadcast_to(base + length * direction, shape))
-    return jnp.stack(out, axis=-2).reshape(shape[:-1] + (-1,))
 
 
 def _near_fn(parents: tuple[int, ...]):
@@ -468,7 +380,7 @@ def _mm_window(
         f = jnp.swapaxes(members(ib) - centre, 0, 1)  # (t, block, d)
         ff = jnp.sum(f * f, axis=-1)[:, None, :]  # (t, 1, block)
         # A plain sqrt: the loop's data-dependent length rules out reverse-mode gradients anyway.
-        d = jnp.sqrt(jnp.maximum(pp + ff + _gram(p, f), 0.0))  # (t, K, block)
+        d = jnp.sqrt(jnp.maximum(pp + ff + gram(p, f), 0.0))  # (t, K, block)
         s_ade += jnp.sum(jnp.where(mb, jnp.min(jnp.sum(d, axis=0), axis=0), 0.0)) / t
         s_fde += jnp.sum(jnp.where(mb, jnp.min(d[-1], axis=0), 0.0))
         return s_ade, s_fde

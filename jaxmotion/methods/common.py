@@ -1,4 +1,4 @@
-"""Pieces the method files share: the zero-velocity baseline, the training-window batch source, DLow's optimiser."""
+"""Pieces the method files share: the zero-velocity baseline, the training-window batch source, DLow's optimiser, the execution."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from jaxmotion.nn.execution import Execution
 from jaxmotion.train.loop import lr_schedule
 
 
@@ -25,3 +26,8 @@ def window_batches(prep, batch_size: int) -> Callable[[np.random.Generator], np.
 def adam(lr: float, num_steps: int, lr_fix_fraction: float) -> optax.GradientTransformation:
     """Returns Adam with DLow's schedule (constant for `lr_fix_fraction` of training, then linear to 0)."""
     return optax.adam(lr_schedule(lr, num_steps, lr_fix_fraction))
+
+
+def execution_of(cfg) -> Execution:
+    """Returns how a run's networks execute (nn/execution.py): the config's `precision`, every other choice the default."""
+    return Execution(precision=cfg.precision)

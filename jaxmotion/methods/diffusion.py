@@ -15,7 +15,7 @@ import jax.numpy as jnp
 import optax
 
 from jaxmotion.method import Method, Stage
-from jaxmotion.methods.common import window_batches, zero_velocity
+from jaxmotion.methods.common import execution_of, window_batches, zero_velocity
 from jaxmotion.models import diffusion
 from jaxmotion.models.diffusion import DiffusionConfig
 from jaxmotion.train.loop import lr_schedule
@@ -24,7 +24,7 @@ from jaxmotion.train.loop import lr_schedule
 def stages(cfg, prep) -> list[Stage]:
     """Returns the one stage: the denoiser trained on `cfg`'s windows, its EMA beside it."""
     ds, c = prep.dataset, METHOD.settings(cfg)
-    model = diffusion.denoiser(c, ds.dim, cfg.precision)
+    model = diffusion.denoiser(c, ds.dim, execution_of(cfg))
     abar = diffusion.schedule(c.schedule, c.noise_steps)
     t_total = ds.t_his + ds.t_pred
     if c.n_dct > t_total:
@@ -54,7 +54,7 @@ def stages(cfg, prep) -> list[Stage]:
 def sampler(cfg, ds, params: dict, k: int, sampling_steps: int | None = None):
     """Returns the jitted `(x, key) -> (b, K, t_pred, D)` DDIM sampler of the EMA weights (`sampling_steps`: the config's when None)."""
     c = METHOD.settings(cfg)
-    model = diffusion.denoiser(c, ds.dim, cfg.precision)
+    model = diffusion.denoiser(c, ds.dim, execution_of(cfg))
     abar = diffusion.schedule(c.schedule, c.noise_steps)
     steps = c.sampling_steps if sampling_steps is None else sampling_steps
     diffusion.ddim_timesteps(c.noise_steps, steps)  # a clear error for steps that do not divide the schedule

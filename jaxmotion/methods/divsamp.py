@@ -19,9 +19,10 @@ import jax.numpy as jnp
 import optax
 
 from jaxmotion.method import Method, Stage
-from jaxmotion.methods.common import adam, window_batches, zero_velocity
+from jaxmotion.methods.common import adam, execution_of, window_batches, zero_velocity
 from jaxmotion.models import divsamp
 from jaxmotion.models.divsamp import DivSampConfig
+from jaxmotion.nn.execution import Execution
 from jaxmotion.train.loop import bn_optimizer, lr_schedule
 
 
@@ -37,7 +38,7 @@ def _dummy_nodes(ds, d: DivSampConfig):
 def cvae_stage(cfg, prep, d: DivSampConfig) -> Stage:
     """Returns the CVAE stage (the release's `run_cvae.py` objective, grad-norm clipping, BatchNorm)."""
     ds = prep.dataset
-    model = divsamp.cvae_from_config(d, cfg.precision)
+    model = divsamp.cvae_from_config(d, execution_of(cfg))
     cx = _dummy_nodes(ds, d)
     loss = functools.partial(
         divsamp.cvae_loss, model, t_his=ds.t_his, parents=tuple(ds.skeleton.parents), beta=d.beta,
@@ -60,7 +61,7 @@ def cvae_stage(cfg, prep, d: DivSampConfig) -> Stage:
 def sampler_stage(cfg, prep, d: DivSampConfig, name: str = "sampler") -> Stage:
     """Returns the sampler stage on the frozen CVAE (Eq. (13)-(15)); `name` and `d` let an ablation train variants beside it."""
     ds = prep.dataset
-    model, cvae = divsamp.sampler_from_config(d, cfg.precision), divsamp.cvae_from_config(d, cfg.precision)
+    model, cvae = divsamp.sampler_from_config(d, execution_of(cfg)), divsamp.cvae_from_config(d, execution_of(cfg))
     loss = functools.partial(
         divsamp.sampler_loss, model, cvae=cvae, t_his=ds.t_his, k=d.nk, lambda_kl=d.lambda_kl,
         lambda_acc=d.lambda_acc, lambda_div=d.lambda_div, eta=d.eta, diversity=d.diversity, d_scale=d.d_scale,
@@ -81,29 +82,27 @@ def stages(cfg, prep) -> list[Stage]:
     return [cvae_stage(cfg, prep, d), sampler_stage(cfg, prep, d)]
 
 
-def make_predictors(d: DivSampConfig, ds, cvae_variables, sampler_variables, k: int, precision: str = "float32") -> dict:
+def make_predictors(d: DivSampConfig, ds, cvae_variables, sampler_variables, k: int, execution: Execution = Execution()) -> dict:
     """Returns jitted `(x, key) -> (b, K, t_pred, D)` samplers: zero-velocity, the CVAE from N(0, I), DivSamp.
 
     DivSamp draws any K from the same trained sampler (its K is a call argument, not a constant).
     Without `sampler_variables` (None: the sampler is not trained yet) there is no "divsamp".
     """
-    cvae, sampler, t_pred = divsamp.cvae_from_config(d, precision), divsamp.sampler_from_config(d, precision), ds.t_pred
+    cvae, sampler, t_pred = divsamp.cvae_from_config(d, execution), divsamp.sampler_from_config(d, execution), ds.t_pred
     out = {
         "zero_velocity": zero_velocity(t_pred, k),
         "divsamp_cvae": jax.jit(lambda x, key: divsamp.sample_prior(cvae, cvae_variables, x, key, k, t_pred=t_pred)),
     }
     if sampler_variables is not None:
         out["divsamp"] = jax.jit(
-            lambda x, key: divsamp.sample_divsamp(
-                cvae, cvae_variables, sampler, sampler_variables, x, key, k, t_pred=t_pred, test_eps=d.test_eps
-            )
+            lambda x, key: divsamp.sample_divsamp(cvae, cvae_variables, sampler, sampler_variables, x, key, k, t_pred=t_pred)
         )
     return out
 
 
 def predictors(cfg, ds, params: dict, k: int) -> dict:
     """Returns `make_predictors` for the config's trained stages (the CVAE's alone while the sampler is not trained)."""
-    return make_predictors(settings(cfg), ds, params["cvae"], params.get("sampler"), k, cfg.precision)
+    return make_predictors(settings(cfg), ds, params["cvae"], params.get("sampler"), k, execution_of(cfg))
 
 
 METHOD = Method(

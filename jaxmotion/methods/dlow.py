@@ -13,7 +13,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxmotion.method import Method, Stage
-from jaxmotion.methods.common import adam, window_batches, zero_velocity
+from jaxmotion.methods.common import adam, execution_of, window_batches, zero_velocity
 from jaxmotion.models import dlow
 from jaxmotion.models.dlow import DLowConfig
 
@@ -21,7 +21,7 @@ from jaxmotion.models.dlow import DLowConfig
 def stages(cfg, prep) -> list[Stage]:
     """Returns DLow's stages: the CVAE, then a Q network per K of `cfg.eval_k`."""
     ds, c = prep.dataset, METHOD.settings(cfg)
-    cvae = dlow.cvae_model(c.cvae, ds.dim, ds.t_pred, cfg.precision)
+    cvae = dlow.cvae_model(c.cvae, ds.dim, ds.t_pred, execution_of(cfg))
     x, y = jnp.zeros((1, ds.t_his, ds.dim)), jnp.zeros((1, ds.t_pred, ds.dim))
     cvae_loss = functools.partial(dlow.cvae_loss, cvae, t_his=ds.t_his, beta=c.cvae.beta, lambda_v=c.cvae.lambda_v)
     out = [
@@ -35,7 +35,7 @@ def stages(cfg, prep) -> list[Stage]:
         )
     ]
     for nk in cfg.eval_k:
-        q = dlow.q_model(c.q, c.cvae.nz, nk, cfg.precision)
+        q = dlow.q_model(c.q, c.cvae.nz, nk, execution_of(cfg))
         q_loss = functools.partial(
             dlow.dlow_loss, q, cvae=cvae, t_his=ds.t_his, d_scale=c.q.d_scale,
             lambda_j=c.q.lambda_j, lambda_recon=c.q.lambda_recon, lambda_kl=c.q.lambda_kl,
@@ -59,13 +59,13 @@ def stages(cfg, prep) -> list[Stage]:
 def predictors(cfg, ds, params: dict, k: int) -> dict:
     """Returns jitted `(x, key) -> (b, K, t_pred, D)` samplers for zero-velocity, CVAE and (for a trained K) DLow."""
     c = METHOD.settings(cfg)
-    cvae = dlow.cvae_model(c.cvae, ds.dim, ds.t_pred, cfg.precision)
+    cvae = dlow.cvae_model(c.cvae, ds.dim, ds.t_pred, execution_of(cfg))
     out = {
         "zero_velocity": zero_velocity(ds.t_pred, k),
         "cvae": jax.jit(lambda x, key: dlow.sample_prior(cvae, params["cvae"], x, key, k)),
     }
     if f"dlow_k{k}" in params:
-        q, qp = dlow.q_model(c.q, c.cvae.nz, k, cfg.precision), params[f"dlow_k{k}"]
+        q, qp = dlow.q_model(c.q, c.cvae.nz, k, execution_of(cfg)), params[f"dlow_k{k}"]
         out["dlow"] = jax.jit(lambda x, key: dlow.sample_dlow(cvae, params["cvae"], q, qp, x, key))
     return out
 

@@ -23,9 +23,10 @@ import optax
 
 from jaxmotion.eval import validity
 from jaxmotion.method import ExtraMetrics, Method, Stage
-from jaxmotion.methods.common import zero_velocity
+from jaxmotion.methods.common import execution_of, zero_velocity
 from jaxmotion.models import gsps
 from jaxmotion.models.gsps import GSPSConfig
+from jaxmotion.nn.execution import Execution
 from jaxmotion.train.loop import bn_optimizer, lr_schedule
 
 
@@ -39,12 +40,10 @@ def _skeleton(ds, c: GSPSConfig):
     return parents, gsps.angle_roles(names, parents), gsps.body_parts(names, parents, c.parts)
 
 
-def _models(ds, c: GSPSConfig, precision: str = "float32"):
+def _models(ds, c: GSPSConfig, execution: Execution = Execution()):
     parents, roles, parts = _skeleton(ds, c)
     prior = gsps.PosePrior(dim=ds.dim, n_layers=c.prior_layers)
-    gen = gsps.GSPSGenerator(
-        parts=parts, hidden=c.hidden, num_stage=c.num_stage, bn_running_var=c.bn_running_var, precision=precision
-    )
+    gen = gsps.GSPSGenerator(parts=parts, hidden=c.hidden, num_stage=c.num_stage, execution=execution)
     return prior, gen, parents, roles, parts
 
 
@@ -57,7 +56,7 @@ def bounds_frames(frames: list[np.ndarray], n: int) -> np.ndarray:
 def stages(cfg, prep) -> list[Stage]:
     """Returns GSPS's stages: `prior`, `angle_bounds` (computed), `generator`."""
     ds, c = prep.dataset, settings(cfg)
-    prior, gen, parents, roles, parts = _models(ds, c, cfg.precision)
+    prior, gen, parents, roles, parts = _models(ds, c, execution_of(cfg))
     frames = np.concatenate(prep.sampler.frames)
 
     prior_stage = Stage(
@@ -111,9 +110,9 @@ def stages(cfg, prep) -> list[Stage]:
     return [prior_stage, bounds_stage, gen_stage]
 
 
-def sample_gsps(c: GSPSConfig, ds, gen_variables, x, key: jax.Array, k: int, noise=None, precision: str = "float32"):
+def sample_gsps(c: GSPSConfig, ds, gen_variables, x, key: jax.Array, k: int, noise=None, execution: Execution = Execution()):
     """Returns `(b, K, t_pred, D)` futures; `noise (b, K, P, nz)` defaults to i.i.d. N(0, I) per part."""
-    _, gen, _, _, parts = _models(ds, c, precision)
+    _, gen, _, _, parts = _models(ds, c, execution)
     z = gsps.sample_noise(key, x.shape[0], k, len(parts), c.nz) if noise is None else noise
     seq, _ = gsps.generate(gen, gen_variables, x, z, t_pred=ds.t_pred, n_pre=c.n_pre, train=False)
     return seq[:, :, ds.t_his :]
@@ -138,7 +137,7 @@ def sample_part_control(cfg, ds, params: dict, x, key: jax.Array, k: int, fix: t
     @jax.jit
     def sample(x, key):
         z = gsps.part_control_noise(key, x.shape[0], k, len(names), c.nz, fixed)
-        return sample_gsps(c, ds, params["generator"], x, key, k, noise=z, precision=cfg.precision)
+        return sample_gsps(c, ds, params["generator"], x, key, k, noise=z, execution=execution_of(cfg))
 
     return sample(jnp.asarray(x), key)
 
@@ -149,7 +148,7 @@ def predictors(cfg, ds, params: dict, k: int) -> dict:
     out = {"zero_velocity": zero_velocity(ds.t_pred, k)}
     if "generator" in params:
         v = params["generator"]
-        out["gsps"] = jax.jit(lambda x, key: sample_gsps(c, ds, v, x, key, k, precision=cfg.precision))
+        out["gsps"] = jax.jit(lambda x, key: sample_gsps(c, ds, v, x, key, k, execution=execution_of(cfg)))
     return out
 
 

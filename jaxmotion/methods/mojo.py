@@ -18,7 +18,7 @@ import jax.numpy as jnp
 from jaxmotion.eval import realism
 from jaxmotion.body.projection import body_fit_fn, init_from_observed, recursive_projection
 from jaxmotion.method import ExtraMetrics, Method, Stage
-from jaxmotion.methods.common import adam, window_batches, zero_velocity
+from jaxmotion.methods.common import adam, execution_of, window_batches, zero_velocity
 from jaxmotion.models import mojo
 from jaxmotion.models.mojo import MojoConfig
 
@@ -26,7 +26,7 @@ from jaxmotion.models.mojo import MojoConfig
 def stages(cfg, prep) -> list[Stage]:
     """Returns MOJO's stages: the CVAE, then the per-band DLow maps for each K of `cfg.eval_k`."""
     ds, m = prep.dataset, METHOD.settings(cfg)
-    model = mojo.cvae_model(m, ds.dim, ds.t_pred, cfg.precision)
+    model = mojo.cvae_model(m, ds.dim, ds.t_pred, execution_of(cfg))
     x, y = jnp.zeros((1, ds.t_his, ds.dim)), jnp.zeros((1, ds.t_pred, ds.dim))
     cvae_loss = functools.partial(mojo.cvae_loss, model, t_his=ds.t_his, **mojo.cvae_loss_weights(m))
     out = [
@@ -40,7 +40,7 @@ def stages(cfg, prep) -> list[Stage]:
         )
     ]
     for nk in cfg.eval_k:
-        q = mojo.q_model(m, ds.t_pred, nk, cfg.precision)
+        q = mojo.q_model(m, ds.t_pred, nk, execution_of(cfg))
         q_loss = functools.partial(mojo.q_loss, q, model=model, t_his=ds.t_his, **mojo.q_loss_weights(m))
         out.append(
             Stage(
@@ -61,14 +61,14 @@ def stages(cfg, prep) -> list[Stage]:
 def predictors(cfg, ds, params: dict, k: int) -> dict:
     """Returns jitted `(x, key) -> (b, K, t_pred, D)` samplers: "mojo" (for a trained K) and the config's baselines."""
     m = METHOD.settings(cfg)
-    model = mojo.cvae_model(m, ds.dim, ds.t_pred, cfg.precision)
+    model = mojo.cvae_model(m, ds.dim, ds.t_pred, execution_of(cfg))
     out = {}
     if "zero_velocity" in m.baselines:
         out["zero_velocity"] = zero_velocity(ds.t_pred, k)
     if "mojo_prior" in m.baselines:
         out["mojo_prior"] = jax.jit(lambda x, key: mojo.sample_prior(model, params["cvae"], x, key, k))
     if f"q_k{k}" in params:
-        q, qp = mojo.q_model(m, ds.t_pred, k, cfg.precision), params[f"q_k{k}"]
+        q, qp = mojo.q_model(m, ds.t_pred, k, execution_of(cfg)), params[f"q_k{k}"]
         out["mojo"] = jax.jit(lambda x, key: mojo.sample_mojo(model, params["cvae"], q, qp, x, key))
         if "mojo_proj" in m.baselines:
             if "body" not in ds.info:

@@ -30,6 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from jaxmotion.eval import metrics
 from jaxmotion.data.windows import test_windows
 from jaxmotion.method import ExtraMetrics, Method, Stage
 from jaxmotion.methods.common import zero_velocity
@@ -80,7 +81,7 @@ class Pool:
     @property
     def sets(self) -> tuple[np.ndarray, np.ndarray]:
         if self._sets is None:
-            s = mm.motionmap_mm_sets(
+            s = metrics.motionmap_mm_sets(
                 self.x[:, -self.c.descriptor_frames :], self.thr, self.parents, cache_dir=self.c.mm_cache_dir
             )
             self._sets = (np.asarray(s.idx), np.asarray(s.mask))
@@ -420,7 +421,7 @@ def draw_pictures(cfg, prep, params: dict, workdir, i: int = 0) -> list:
     import matplotlib.pyplot as plt
 
     from jaxmotion.formats.atomic import atomic_path
-    from jaxmotion.tools.viz import draw_pose, frames_to_joints, view_axes
+    from jaxmotion.pictures.viz import draw_pose, frames_to_joints, view_axes
 
     from pathlib import Path
 
@@ -432,7 +433,7 @@ def draw_pictures(cfg, prep, params: dict, workdir, i: int = 0) -> list:
     out = modes_fn(cfg, ds, params)(jnp.asarray(x))
     heat, cells, conf, valid = (np.asarray(a)[0] for a in (out.heatmap, out.cells, out.confidence, out.valid))
     f = c.descriptor_frames
-    sets = mm.motionmap_mm_sets(x[:, -f:], pool.thr, pool.parents, reference_desc=pool.x[:, -f:])
+    sets = metrics.motionmap_mm_sets(x[:, -f:], pool.thr, pool.parents, reference_desc=pool.x[:, -f:])
     members = np.asarray(sets.idx)[0, np.asarray(sets.mask)[0]]
     gt_cells = np.asarray(cb["cells"])[members].astype(np.float32)
     gt = np.asarray(mm.gaussian_heatmap(jnp.asarray(gt_cells.reshape(-1, 2)), jnp.ones(len(gt_cells), bool), c.hm_size, c.hm_sigma))

@@ -12,8 +12,8 @@ DLow's CVAE (Yuan & Kitani 2020) is the one-band case of MOJO's (Zhang et al. 20
   MLP and a linear layer; with `residual` (MOJO) that layer predicts the change from `y_{t-1}`.
 
 `DLowCVAE` and `MojoCVAE` (in `models/dlow.py`, `models/mojo.py`) are this module with the
-papers' defaults. The helpers below (`reparameterise`, `decode_k`, `sample_prior`) are written
-once and used by every CVAE in the library, DivSamp's GCN CVAE included.
+papers' defaults. The helpers below (`decode_k`, `sample_prior`) are written once for both; the
+reparameterised draw is `jaxmotion.nn.gaussian.reparameterise`, which DivSamp's GCN CVAE shares.
 """
 
 from __future__ import annotations
@@ -27,8 +27,10 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
 from jaxmotion.dct import dct, idct
-from jaxmotion.train.distributed import batch_rows
+from jaxmotion.nn.batch import batch_rows
 from jaxmotion.nn.decoder_loop import decoder_loop, decoder_scan
+from jaxmotion.nn.execution import Execution
+from jaxmotion.nn.gaussian import reparameterise
 from jaxmotion.nn.gru import GRU, GRUCell
 from jaxmotion.nn.linear import Dense
 from jaxmotion.nn.mlp import MLP
@@ -37,20 +39,9 @@ from jaxmotion.nn.precision import matmul
 LATENT_KINDS = ("vector", "dct")
 
 
-def reparameterise(mu: Float[ArrayLike, "..."], logvar: Float[ArrayLike, "..."], key: jax.Array | None) -> Float[Array, "..."]:
-    """Returns `mu + exp(logvar / 2) * eps`, eps ~ N(0, I) (Kingma & Welling Eq. (10)); `mu` when `key` is None."""
-    if key is None:
-        return mu
-    eps = batch_rows(lambda n: jax.random.normal(key, (n,) + mu.shape[1:]), mu.shape[0])
-    return mu + jnp.exp(0.5 * logvar) * eps
-
-
 def vmap_k(decode: Callable[[jax.Array], jax.Array], z: Float[ArrayLike, "b k ..."]) -> Float[Array, "b k ..."]:
     """Returns `decode` applied to each of the K latents `z[:, k]`, stacked on axis 1 (one `jax.vmap`, no loop)."""
     return jnp.swapaxes(jax.vmap(decode, in_axes=1)(z), 0, 1)
-
-
-DECODER_BACKWARDS = ("batched", "autodiff")
 
 
 class DecodeCarry(NamedTuple):
@@ -81,27 +72,8 @@ class GRUCVAE(nn.Module):
     nh_mlp: tuple[int, ...] = (300, 200)
     latent: str = "vector"
     residual: bool = False
-    # Dense layers' initialisation: "torch" (the references' nn.Linear) or "flax" (nn.Dense). GRUs
-    # always follow PyTorch's rule (nn/gru.py).
-    dense_init: str = "torch"
-    precision: str = "float32"  # every weight product's: "float32" or "bf16" (nn/precision.py)
-    # With decoder_backward="autodiff" (below), the decoder loop's backward pass keeps each step's
-    # matrix products and recomputes the gates' elementwise work (jax.checkpoint_policies.dots_saveable)
-    # instead of stacking every intermediate of every step (issue 18's "scan residual copies"). Same numbers; DLow's and
-    # MOJO's second-stage steps (the gradient through the K = 50 decoders) measured 1.12x faster,
-    # the CVAE steps unchanged (`python benchmarks/ab.py --ab decoder_remat`; benchmarks/results/optimisations.md).
-    # The same policy on the encoders' GRU (nn/gru.py) measured slower, so it is not used there.
-    decoder_remat: bool = True
-    # lax.scan's `unroll` of the differentiated decoder loop (decoder_backward="autodiff"): same
-    # numbers; 4 measured within the run-to-run spread (0.96x-1.07x, `benchmarks/ab.py --ab
-    # decoder_unroll`), so the default stays 1.
-    decoder_unroll: int = 1
-    # The decoder loop's backward pass: "batched" (default) computes each weight's gradient as one
-    # product over all steps after the loop (nn/decoder_loop.py; float32 only, bf16 falls back);
-    # "autodiff" differentiates the loop (a product and an accumulation per step and weight, with
-    # decoder_remat / decoder_unroll above). Same numbers up to summation order; benchmarks/results/optimisations.md,
-    # "Batched weight gradients of the decoder loop", has the A/B.
-    decoder_backward: str = "batched"
+    # How it runs (precision, the decoder loop's backward form, remat, unroll): nn/execution.py.
+    execution: Execution = Execution()
 
     @property
     def latent_shape(self) -> tuple[int, ...]:
@@ -114,18 +86,16 @@ class GRUCVAE(nn.Module):
     def setup(self):
         if self.latent not in LATENT_KINDS:
             raise ValueError(f"{type(self).__name__}.latent must be one of {LATENT_KINDS}, got {self.latent!r}")
-        if self.decoder_backward not in DECODER_BACKWARDS:
-            raise ValueError(f"{type(self).__name__}.decoder_backward must be one of {DECODER_BACKWARDS}, got {self.decoder_backward!r}")
-        init, mm = self.dense_init, self.precision
+        mm = self.execution.precision  # every layer initialised as the references' PyTorch layers (nn/linear.py, nn/gru.py)
         self.x_rnn = GRU(self.nh_rnn, mm)
         self.e_rnn = GRU(self.nh_rnn, mm)
-        self.e_mlp = MLP(self.nh_mlp, dense_init=init, precision=mm)
-        self.e_mu = Dense(self.nz, rule=init, precision=mm)
-        self.e_logvar = Dense(self.nz, rule=init, precision=mm)
-        self.drnn_mlp = MLP(tuple(self.nh_mlp) + (self.nh_rnn,), dense_init=init, precision=mm)
+        self.e_mlp = MLP(self.nh_mlp, precision=mm)
+        self.e_mu = Dense(self.nz, precision=mm)
+        self.e_logvar = Dense(self.nz, precision=mm)
+        self.drnn_mlp = MLP(tuple(self.nh_mlp) + (self.nh_rnn,), precision=mm)
         self.d_cell = GRUCell(self.nh_rnn, mm)
-        self.d_mlp = MLP(self.nh_mlp, dense_init=init, precision=mm)
-        self.d_out = Dense(self.dim, rule=init, precision=mm)
+        self.d_mlp = MLP(self.nh_mlp, precision=mm)
+        self.d_out = Dense(self.dim, precision=mm)
 
     def encode_x(self, x: Float[ArrayLike, "b t_his d"]) -> Float[Array, "b h"]:
         """Returns the last hidden state of the past encoder GRU."""
@@ -189,7 +159,8 @@ class GRUCVAE(nn.Module):
         h_x = inputs.h_x[0]
         static = h_x if self.latent == "dct" else jnp.concatenate([h_x, z], axis=-1)
         n_static = static.shape[-1]
-        mm = self.precision
+        ex = self.execution
+        mm = ex.precision
         gi_static = matmul(static, w["weight_ih"][:n_static], mm) + w["bias_ih"]  # (b, 3 nh)
         w_dyn = w["weight_ih"][n_static:]
         mlp, out = self.d_mlp.variables["params"], self.d_out.variables["params"]
@@ -197,11 +168,11 @@ class GRUCVAE(nn.Module):
              "mlp": [(mlp[f"dense_{i}"]["kernel"], mlp[f"dense_{i}"]["bias"]) for i in range(len(self.nh_mlp))],
              "out": (out["kernel"], out["bias"])}
         per_step = inputs.z_t if self.latent == "dct" else jnp.zeros((self.horizon, static.shape[0], 0), gi_static.dtype)
-        if self.decoder_backward == "batched" and mm == "float32":
+        if ex.decoder_backward == "batched" and mm == "float32":
             ys = decoder_loop(p, gi_static, carry.h, carry.y_prev, per_step, residual=self.residual)
         else:
             ys = decoder_scan(p, gi_static, carry.h, carry.y_prev, per_step, residual=self.residual, precision=mm,
-                              remat=self.decoder_remat, unroll=self.decoder_unroll)
+                              remat=ex.decoder_remat, unroll=ex.decoder_unroll)
         return jnp.swapaxes(ys, 0, 1)
 
     def __call__(self, x, y, key: jax.Array | None = None):

@@ -33,6 +33,7 @@ import optax
 from jaxtyping import Array, ArrayLike, Float, Int
 
 from jaxmotion.dct import dct, idct
+from jaxmotion.nn.execution import Execution
 from jaxmotion.nn.linear import Dense, initializers
 from jaxmotion.nn.precision import matmul
 
@@ -70,7 +71,6 @@ class DiffusionConfig:
     batch_size: int = 64
     num_steps: int = 6000
     lr_fix_fraction: float = 0.5  # constant lr for this fraction of training, then linear decay to 0
-    dense_init: str = "torch"  # the release's nn.Linear initialisation ("flax": nn.Dense's)
 
     def __post_init__(self):
         for name in ("n_dct", "latent", "ff", "num_layers", "num_heads", "noise_steps", "sampling_steps", "batch_size"):
@@ -130,12 +130,11 @@ class Stylization(nn.Module):
 
     latent: int
     dropout: float
-    dense_init: str = "torch"
     precision: str = "float32"
 
     @nn.compact
     def __call__(self, h, emb, deterministic: bool):
-        ss = Dense(2 * self.latent, rule=self.dense_init, precision=self.precision, name="emb")(nn.silu(emb))[:, None]
+        ss = Dense(2 * self.latent, precision=self.precision, name="emb")(nn.silu(emb))[:, None]
         scale, shift = jnp.split(ss, 2, axis=-1)
         h = nn.LayerNorm(epsilon=1e-5, name="norm")(h) * (1.0 + scale) + shift
         h = nn.Dropout(self.dropout)(nn.silu(h), deterministic=deterministic)
@@ -143,15 +142,14 @@ class Stylization(nn.Module):
 
 
 class NoBiasDense(nn.Module):
-    """A dense layer without bias (attention's query, key and value), initialised by `rule` as `Dense`'s kernel."""
+    """A dense layer without bias (attention's query, key and value), its kernel initialised as `Dense`'s (the release's nn.Linear)."""
 
     features: int
-    rule: str = "torch"
     precision: str = "float32"
 
     @nn.compact
     def __call__(self, x):
-        k_init, _ = initializers(self.rule, x.shape[-1])
+        k_init, _ = initializers("torch", x.shape[-1])
         kernel = self.param("kernel", k_init, (x.shape[-1], self.features), jnp.float32)
         return matmul(x, kernel, self.precision)
 
@@ -163,22 +161,21 @@ class Block(nn.Module):
     ff: int
     num_heads: int
     dropout: float
-    dense_init: str = "torch"
     precision: str = "float32"
 
     @nn.compact
     def __call__(self, h: Float[Array, "b n c"], emb: Float[Array, "b c"], deterministic: bool):
         b, n, c = h.shape
-        nh, mm, rule = self.num_heads, self.precision, self.dense_init
+        nh, mm = self.num_heads, self.precision
         hn = nn.LayerNorm(epsilon=1e-5, name="attn_norm")(h)
-        q, k, v = (NoBiasDense(c, rule, mm, name=w)(hn).reshape(b, n, nh, c // nh) for w in ("query", "key", "value"))
+        q, k, v = (NoBiasDense(c, precision=mm, name=w)(hn).reshape(b, n, nh, c // nh) for w in ("query", "key", "value"))
         w = jax.nn.softmax(jnp.einsum("bnhd,bmhd->bnmh", q, k) / math.sqrt(c // nh), axis=2)
         w = nn.Dropout(self.dropout)(w, deterministic=deterministic)
         y = jnp.einsum("bnmh,bmhd->bnhd", w, v).reshape(b, n, c)
-        h = h + Stylization(c, self.dropout, rule, mm, name="attn_style")(y, emb, deterministic)
-        y = nn.gelu(Dense(self.ff, rule=rule, precision=mm, name="ff_in")(h), approximate=False)
+        h = h + Stylization(c, self.dropout, mm, name="attn_style")(y, emb, deterministic)
+        y = nn.gelu(Dense(self.ff, precision=mm, name="ff_in")(h), approximate=False)
         y = ZeroDense(c, mm, name="ff_out")(nn.Dropout(self.dropout)(y, deterministic=deterministic))
-        return h + Stylization(c, self.dropout, rule, mm, name="ff_style")(y, emb, deterministic)
+        return h + Stylization(c, self.dropout, mm, name="ff_style")(y, emb, deterministic)
 
 
 class Denoiser(nn.Module):
@@ -195,23 +192,22 @@ class Denoiser(nn.Module):
     num_layers: int = 4
     num_heads: int = 4
     dropout: float = 0.2
-    dense_init: str = "torch"
-    precision: str = "float32"
+    execution: Execution = Execution()  # how it runs (its products' precision): nn/execution.py
 
     @nn.compact
     def __call__(self, x: Float[ArrayLike, "b n d"], t: Int[ArrayLike, " b"], cond: Float[ArrayLike, "b n d"],
                  keep: Float[ArrayLike, " b"], deterministic: bool = True) -> Float[Array, "b n d"]:
         b, n, _ = x.shape
-        c, mm, rule = self.latent, self.precision, self.dense_init
-        emb = Dense(c, rule=rule, precision=mm, name="time_in")(timestep_embedding(t, c))
-        emb = Dense(c, rule=rule, precision=mm, name="time_out")(nn.silu(emb))
-        emb = emb + jnp.asarray(keep, jnp.float32)[:, None] * Dense(c, rule=rule, precision=mm, name="cond_embed")(
+        c, mm = self.latent, self.execution.precision
+        emb = Dense(c, precision=mm, name="time_in")(timestep_embedding(t, c))
+        emb = Dense(c, precision=mm, name="time_out")(nn.silu(emb))
+        emb = emb + jnp.asarray(keep, jnp.float32)[:, None] * Dense(c, precision=mm, name="cond_embed")(
             jnp.reshape(cond, (b, -1)))
         seq = self.param("sequence_embedding", nn.initializers.normal(1.0), (self.n_dct, c), jnp.float32)
-        h = Dense(c, rule=rule, precision=mm, name="joint_embed")(x) + seq[None, :n]
+        h = Dense(c, precision=mm, name="joint_embed")(x) + seq[None, :n]
         skips = []
         for i in range(self.num_layers):
-            block = Block(c, self.ff, self.num_heads, self.dropout, rule, mm, name=f"block_{i}")
+            block = Block(c, self.ff, self.num_heads, self.dropout, mm, name=f"block_{i}")
             if i < self.num_layers // 2:
                 skips.append(h)
                 h = block(h, emb, deterministic)
@@ -220,10 +216,10 @@ class Denoiser(nn.Module):
         return ZeroDense(self.dim, mm, name="out")(h)
 
 
-def denoiser(c: DiffusionConfig, dim: int, precision: str = "float32") -> Denoiser:
-    """Returns the denoiser a `DiffusionConfig` describes for `dim`-dimensional frames."""
+def denoiser(c: DiffusionConfig, dim: int, execution: Execution = Execution()) -> Denoiser:
+    """Returns the denoiser a `DiffusionConfig` describes for `dim`-dimensional frames, run as `execution` says."""
     return Denoiser(dim=dim, n_dct=c.n_dct, latent=c.latent, ff=c.ff, num_layers=c.num_layers, num_heads=c.num_heads,
-                    dropout=c.dropout, dense_init=c.dense_init, precision=precision)
+                    dropout=c.dropout, execution=execution)
 
 
 # ---------------------------------------------------------------------------------------------

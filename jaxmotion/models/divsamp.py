@@ -34,20 +34,19 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from jaxmotion.dct import dct, idct
-from jaxmotion.train.distributed import batch_rows
+from jaxmotion.dct import condition_nodes, from_nodes, to_nodes
+from jaxmotion.nn.batch import batch_rows
 from jaxmotion.gumbel import COEFFICIENT_KINDS, sample_coefficients
 from jaxmotion.losses import dlow_diversity, hinge_diversity, kld_normal
-# The skeleton's bones live with the metrics (motion transfer uses them too); kept importable from here.
-from jaxmotion.eval.metrics import bone_lengths, bone_matrix, bone_vectors  # noqa: F401
-from jaxmotion.models.cvae import reparameterise
+from jaxmotion.body.bones import bone_lengths, bone_matrix, bone_vectors  # noqa: F401 (public here too)
+from jaxmotion.nn.gaussian import reparameterise
 from jaxmotion.nn.gcn import GCLStack, GraphConv
-from jaxmotion.nn.batchnorm import RUNNING_VARS, BatchNorm
-from jaxmotion.nn.linear import DENSE_INITS, Dense
+from jaxmotion.nn.batchnorm import BatchNorm
+from jaxmotion.nn.execution import Execution
+from jaxmotion.nn.linear import Dense
 
 PI_KINDS = ("uniform", "learned_shared", "learned_per_sample")
 DIVERSITY_KINDS = ("hinge", "exp")
-TEST_EPS_KINDS = ("shared", "independent")
 
 
 @dataclasses.dataclass(slots=True)
@@ -85,16 +84,6 @@ class DivSampConfig:
     coefficients: str = "gumbel"  # "gumbel" | "uniform" | "gaussian" (ablation, Table 5)
     pi: str = "uniform"  # "uniform" (1/M) | "learned_shared" | "learned_per_sample"
     tau: float = 1.0  # the paper's temperature; the released configs use 0.85
-    # Dense layers' initialisation (encoder heads, bases, N_gamma): "torch" (default) is the
-    # release's nn.Linear; "flax" (nn.Dense) is what the tables before issue 11 were trained with.
-    # The graph convolutions follow the release always.
-    dense_init: str = "torch"
-    # Test-time noise: "independent" (default: K draws per window, the release's evaluation) or
-    # "shared" (one eps per window for its K latents, as in training; the tables before issue 11).
-    test_eps: str = "independent"
-    # BatchNorm running variance kept for evaluation: "unbiased" (default, PyTorch's, the release's)
-    # or "biased" (flax's; the tables before issue 11). See nn/batchnorm.py.
-    bn_running_var: str = "unbiased"
     # Sampler training (release: lr 1e-3, batch 16, K 50, 1500 epochs of which 100 at constant lr).
     nk: int = 50  # K while training; any K can be drawn afterwards
     lr: float = 1e-3
@@ -128,43 +117,7 @@ def check_config(c: DivSampConfig) -> DivSampConfig:
         raise ValueError(f"DivSampConfig.nk must be >= 2 (the diversity loss needs pairs), got {c.nk}")
     if c.tau <= 0:
         raise ValueError(f"DivSampConfig.tau must be > 0, got {c.tau}")
-    if c.test_eps not in TEST_EPS_KINDS:
-        raise ValueError(f"DivSampConfig.test_eps must be one of {TEST_EPS_KINDS}, got {c.test_eps!r}")
-    if c.dense_init not in DENSE_INITS:
-        raise ValueError(f"DivSampConfig.dense_init must be one of {DENSE_INITS}, got {c.dense_init!r}")
-    if c.bn_running_var not in RUNNING_VARS:
-        raise ValueError(f"DivSampConfig.bn_running_var must be one of {RUNNING_VARS}, got {c.bn_running_var!r}")
     return c
-
-
-# --------------------------------------------------------------------------------------------
-# Frames <-> DCT node features.
-
-
-def pad_history(x: Float[ArrayLike, "b t_his d"], t_pred: int) -> Float[Array, "b t d"]:
-    """Returns the history followed by `t_pred` copies of its last pose (DivSamp Sec. 3.1)."""
-    return jnp.concatenate([x, jnp.repeat(x[:, -1:], t_pred, axis=1)], axis=1)
-
-
-def to_nodes(seq: Float[ArrayLike, "b t d"], n_dct: int) -> Float[Array, "b j c"]:
-    """Returns `(b, J, 3 * n_dct)`: the first `n_dct` DCT coefficients of each coordinate, grouped by joint."""
-    c = dct(seq, n_dct)  # (b, n_dct, D)
-    b, n, d = c.shape
-    # Per joint [x_0..x_{n-1}, y_0.., z_0..], the release's `view(b, -1, 3 * dct_n)` layout.
-    return c.reshape(b, n, d // 3, 3).transpose(0, 2, 3, 1).reshape(b, d // 3, 3 * n)
-
-
-def from_nodes(nodes: Float[ArrayLike, "b j c"], n_frames: int) -> Float[Array, "b t d"]:
-    """Returns the `(b, n_frames, D)` frames whose DCT coefficients are `nodes` (the inverse of `to_nodes`)."""
-    b, j, c = nodes.shape
-    n = c // 3
-    coeffs = nodes.reshape(b, j, 3, n).transpose(0, 3, 1, 2).reshape(b, n, j * 3)
-    return idct(coeffs, n_frames)
-
-
-def condition_nodes(x: Float[ArrayLike, "b t_his d"], t_pred: int, n_dct: int) -> Float[Array, "b j c"]:
-    """Returns the DCT node features of the padded history: the input of both networks."""
-    return to_nodes(pad_history(x, t_pred), n_dct)
 
 
 # --------------------------------------------------------------------------------------------
@@ -178,17 +131,14 @@ class DivSampCVAE(nn.Module):
     hidden: int = 256
     nz: int = 64
     num_residual: int = 4
-    dense_init: str = "torch"
-    bn_running_var: str = "unbiased"
-    precision: str = "float32"  # every weight product's: "float32" or "bf16" (nn/precision.py)
-    gcn_node_major: bool = True  # the GCL stacks' inner layout (nn/gcn.py GCLStack.node_major); same outputs
+    execution: Execution = Execution()  # how it runs (precision, the GCL stacks' layout): nn/execution.py
 
     def setup(self):
-        mm, nm = self.precision, self.gcn_node_major
-        self.enc = GCLStack(self.hidden, self.num_residual, self.bn_running_var, mm, nm)
-        self.e_mu = Dense(self.nz, rule=self.dense_init, precision=mm)
-        self.e_logvar = Dense(self.nz, rule=self.dense_init, precision=mm)
-        self.dec = GCLStack(self.hidden, self.num_residual, self.bn_running_var, mm, nm)
+        mm, nm = self.execution.precision, self.execution.gcn_node_major
+        self.enc = GCLStack(self.hidden, self.num_residual, precision=mm, node_major=nm)
+        self.e_mu = Dense(self.nz, precision=mm)
+        self.e_logvar = Dense(self.nz, precision=mm)
+        self.dec = GCLStack(self.hidden, self.num_residual, precision=mm, node_major=nm)
         self.d_out = GraphConv(3 * self.n_dct, precision=mm)
 
     def encode(self, cx: Float[ArrayLike, "b j c"], cw: Float[ArrayLike, "b j c"], *, train: bool):
@@ -214,17 +164,15 @@ class GammaHead(nn.Module):
 
     nh: int
     out: int
-    dense_init: str = "torch"
-    bn_running_var: str = "unbiased"
-    precision: str = "float32"  # as DivSampCVAE.precision
+    precision: str = "float32"  # the products' (nn/precision.py)
 
     @nn.compact
     def __call__(self, p: Float[ArrayLike, "... n"], *, train: bool) -> Float[Array, "... o"]:
-        h = Dense(self.nh, rule=self.dense_init, precision=self.precision, name="dense_0")(p)
+        h = Dense(self.nh, precision=self.precision, name="dense_0")(p)
         # Statistics over all leading axes, i.e. over the b * K points, like the release's
         # BatchNorm1d on the (b * nk, n_b) matrix.
-        h = BatchNorm(not train, 0.9, 1e-5, self.bn_running_var, name="bn")(h)
-        return Dense(self.out, rule=self.dense_init, precision=self.precision, name="dense_1")(jnp.tanh(h))
+        h = BatchNorm(not train, 0.9, 1e-5, name="bn")(h)
+        return Dense(self.out, precision=self.precision, name="dense_1")(jnp.tanh(h))
 
 
 class DivSampSampler(nn.Module):
@@ -240,10 +188,7 @@ class DivSampSampler(nn.Module):
     coefficients: str = "gumbel"
     pi: str = "uniform"
     tau: float = 1.0
-    dense_init: str = "torch"
-    bn_running_var: str = "unbiased"
-    precision: str = "float32"  # as DivSampCVAE.precision; the coefficients' product w @ B stays float32
-    gcn_node_major: bool = True  # as DivSampCVAE.gcn_node_major
+    execution: Execution = Execution()  # as DivSampCVAE.execution; the coefficients' product w @ B stays float32
 
     @nn.compact
     def __call__(self, cx: Float[ArrayLike, "b j c"], key: jax.Array, k: int, *, train: bool, shared_eps: bool = True):
@@ -251,10 +196,11 @@ class DivSampSampler(nn.Module):
         or K independent draws with `shared_eps=False` (the release at test time)."""
         b = cx.shape[0]
         m = self.num_bases
-        mm = self.precision
-        h = GCLStack(self.hidden, self.num_residual, self.bn_running_var, mm, self.gcn_node_major, name="condition_enc")(cx, train=train).reshape(b, -1)
-        base = Dense(m * self.base_dim, rule=self.dense_init, precision=mm, name="bases")(h)
-        base = BatchNorm(not train, 0.9, 1e-5, self.bn_running_var, name="bases_bn")(base)
+        mm = self.execution.precision
+        h = GCLStack(self.hidden, self.num_residual, precision=mm, node_major=self.execution.gcn_node_major, name="condition_enc")(cx, train=train)
+        h = h.reshape(b, -1)
+        base = Dense(m * self.base_dim, precision=mm, name="bases")(h)
+        base = BatchNorm(not train, 0.9, 1e-5, name="bases_bn")(base)
         if self.base_tanh:
             base = jnp.tanh(base)
         base = base.reshape(b, m, self.base_dim)  # B, one per window (DivSamp Eq. (8))
@@ -273,23 +219,22 @@ class DivSampSampler(nn.Module):
             sample = lambda kk, lg: sample_coefficients(kk, k, m, kind=self.coefficients, tau=self.tau, logits=lg)
         w = jax.vmap(sample)(batch_rows(lambda n: jax.random.split(k_w, n), b), logits)  # (b, K, M), rows on the simplex
         p = w @ base  # (b, K, n_b): K points of the auxiliary space (DivSamp Eq. (11))
-        mean = GammaHead(self.nh, self.nz, self.dense_init, self.bn_running_var, mm, name="mean")(p, train=train)
-        logvar = GammaHead(self.nh, self.nz, self.dense_init, self.bn_running_var, mm, name="logvar")(p, train=train)
+        mean = GammaHead(self.nh, self.nz, mm, name="mean")(p, train=train)
+        logvar = GammaHead(self.nh, self.nz, mm, name="logvar")(p, train=train)
         eps = batch_rows(lambda n: jax.random.normal(k_eps, (n, 1 if shared_eps else k, self.nz)), b)
         return jnp.exp(0.5 * logvar) * eps + mean, mean, logvar  # DivSamp Eq. (12)
 
 
-def cvae_from_config(c: DivSampConfig, precision: str = "float32") -> DivSampCVAE:
-    return DivSampCVAE(n_dct=c.n_dct, hidden=c.hidden, nz=c.nz, num_residual=c.cvae_residual, dense_init=c.dense_init,
-        bn_running_var=c.bn_running_var, precision=precision,
-    )
+def cvae_from_config(c: DivSampConfig, execution: Execution = Execution()) -> DivSampCVAE:
+    """Returns the CVAE module a `DivSampConfig` describes, run as `execution` says (nn/execution.py)."""
+    return DivSampCVAE(n_dct=c.n_dct, hidden=c.hidden, nz=c.nz, num_residual=c.cvae_residual, execution=execution)
 
 
-def sampler_from_config(c: DivSampConfig, precision: str = "float32") -> DivSampSampler:
+def sampler_from_config(c: DivSampConfig, execution: Execution = Execution()) -> DivSampSampler:
+    """Returns the sampler module a `DivSampConfig` describes, run as `execution` says (nn/execution.py)."""
     return DivSampSampler(
         nz=c.nz, hidden=c.hidden, num_residual=c.sampler_residual, num_bases=c.num_bases, base_dim=c.base_dim,
-        nh=c.nh, base_tanh=c.base_tanh, coefficients=c.coefficients, pi=c.pi, tau=c.tau, dense_init=c.dense_init,
-        bn_running_var=c.bn_running_var, precision=precision,
+        nh=c.nh, base_tanh=c.base_tanh, coefficients=c.coefficients, pi=c.pi, tau=c.tau, execution=execution,
     )
 
 
@@ -322,17 +267,15 @@ def sample_prior(cvae: DivSampCVAE, variables, x: Float[ArrayLike, "b t_his d"],
 
 def sample_divsamp(
     cvae: DivSampCVAE, cvae_variables, sampler: DivSampSampler, sampler_variables, x: Float[ArrayLike, "b t_his d"], key, k: int,
-    *, t_pred: int, test_eps: str = "independent",
+    *, t_pred: int,
 ):
     """Returns DivSamp's K futures `(b, K, t_pred, D)` (Alg. 2): K auxiliary points -> K Gaussians -> K latents -> decoder.
 
-    `test_eps`: "independent" (K draws, what the release's evaluation does) or "shared" (one eps
-    per window for its K latents, as in training).
+    Each of the K latents has its own noise draw, as the release's evaluation does (training shares
+    one per window, `DivSampSampler`'s `shared_eps`).
     """
-    if test_eps not in TEST_EPS_KINDS:
-        raise ValueError(f"sample_divsamp: test_eps must be one of {TEST_EPS_KINDS}, got {test_eps!r}")
     cx = condition_nodes(x, t_pred, cvae.n_dct)
-    z, _, _ = sampler.apply(sampler_variables, cx, key, k, train=False, shared_eps=test_eps == "shared")
+    z, _, _ = sampler.apply(sampler_variables, cx, key, k, train=False, shared_eps=False)
     return decode_k(cvae, cvae_variables, cx, z, t_his=x.shape[1], t_pred=t_pred)
 
 

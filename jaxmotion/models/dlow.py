@@ -17,9 +17,10 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from jaxmotion.train.distributed import batch_rows
+from jaxmotion.nn.batch import batch_rows
 from jaxmotion.losses import dlow_diversity, kld_affine, kld_normal, min_of_k_sq_error
 from jaxmotion.models.cvae import GRUCVAE, cvae_objective, decode_k, sample_prior
+from jaxmotion.nn.execution import Execution
 from jaxmotion.nn.gru import GRU
 from jaxmotion.nn.linear import Dense
 from jaxmotion.nn.mlp import MLP
@@ -41,10 +42,6 @@ class CVAEConfig:
     lr_fix_fraction: float = 0.2  # DLow keeps lr constant for 100 of 500 epochs, then decays linearly to 0
     beta: float = 0.1
     lambda_v: float = 1000.0
-    # Dense layers' initialisation: "torch" (default) is the release's nn.Linear, U(+-1/sqrt(fan_in));
-    # "flax" is nn.Dense (lecun-normal weights, zero biases), what the tables before issue 11 used.
-    # With "flax" the CVAE's KL reaches 132 nats at step 50 on Bandai, against 7.8 (the release: 4.7).
-    dense_init: str = "torch"
 
 
 @dataclasses.dataclass(slots=True)
@@ -61,7 +58,6 @@ class QConfig:
     lambda_j: float = 25.0
     lambda_recon: float = 2.0
     lambda_kl: float = 1.0
-    dense_init: str = "torch"  # as CVAEConfig.dense_init
 
 
 def _synthetic_cvae() -> CVAEConfig:
@@ -97,10 +93,10 @@ class DLowCVAE(GRUCVAE):
     residual: bool = False
 
 
-def cvae_model(c: CVAEConfig, dim: int, horizon: int, precision: str = "float32") -> DLowCVAE:
-    """Returns the CVAE module a `CVAEConfig` describes (`precision`: its products', nn/precision.py)."""
+def cvae_model(c: CVAEConfig, dim: int, horizon: int, execution: Execution = Execution()) -> DLowCVAE:
+    """Returns the CVAE module a `CVAEConfig` describes, run as `execution` says (nn/execution.py)."""
     return DLowCVAE(
-        dim=dim, horizon=horizon, nz=c.nz, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp), dense_init=c.dense_init, precision=precision
+        dim=dim, horizon=horizon, nz=c.nz, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp), execution=execution
     )
 
 
@@ -116,18 +112,17 @@ class QTrunk(nn.Module):
     n_heads: int = 1
     nh_rnn: int = 128
     nh_mlp: tuple[int, ...] = (1024, 512)
-    dense_init: str = "torch"  # "torch" (the releases' nn.Linear) or "flax" (nn.Dense)
-    precision: str = "float32"  # every weight product's: "float32" or "bf16" (nn/precision.py)
+    execution: Execution = Execution()  # how it runs (its products' precision): nn/execution.py
 
     @nn.compact
     def __call__(self, x: Float[ArrayLike, "b t_his d"]):
-        mm = self.precision
+        mm = self.execution.precision
         h = GRU(self.nh_rnn, mm, name="x_rnn")(x, last_only=True)
-        h = MLP(self.nh_mlp, dense_init=self.dense_init, precision=mm, name="mlp")(h)
+        h = MLP(self.nh_mlp, precision=mm, name="mlp")(h)
         # One Dense with n_heads * nk * nz outputs is exactly n_heads unshared linear heads.
         shape = (-1, self.n_heads, self.nk, self.nz)
-        a = Dense(self.n_heads * self.nk * self.nz, rule=self.dense_init, precision=mm, name="head_A")(h).reshape(shape)
-        b = Dense(self.n_heads * self.nk * self.nz, rule=self.dense_init, precision=mm, name="head_b")(h).reshape(shape)
+        a = Dense(self.n_heads * self.nk * self.nz, precision=mm, name="head_A")(h).reshape(shape)
+        b = Dense(self.n_heads * self.nk * self.nz, precision=mm, name="head_b")(h).reshape(shape)
         return a, b
 
 
@@ -143,9 +138,9 @@ class DLowQ(QTrunk):
         return a * eps[:, None, :] + b, a, b
 
 
-def q_model(c: QConfig, nz: int, nk: int, precision: str = "float32") -> DLowQ:
+def q_model(c: QConfig, nz: int, nk: int, execution: Execution = Execution()) -> DLowQ:
     """Returns the Q network of a `QConfig` for `nk` samples of an `nz`-dimensional latent."""
-    return DLowQ(nz=nz, nk=nk, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp), dense_init=c.dense_init, precision=precision)
+    return DLowQ(nz=nz, nk=nk, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp), execution=execution)
 
 
 def sample_dlow(cvae: DLowCVAE, cvae_params, q: DLowQ, q_params, x, key: jax.Array) -> Float[Array, "b nk t_pred d"]:

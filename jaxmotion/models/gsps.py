@@ -14,7 +14,7 @@ Two networks, trained one after the other (authors' release github.com/wei-mao-2
   frames, 5 at constant lr then linear decay).
 * **Generator** (`train.py`, `models/GCN.py: GCNParts`): the history padded with its last frame
   to `t_his + t_pred`, DCT, first `n_pre` coefficients, per-joint features `[x | y | z]`
-  (`divsamp.condition_nodes`). One GCN per body part (in -> 256, BatchNorm, tanh, 4 residual
+  (`jaxmotion.dct.condition_nodes`). One GCN per body part (in -> 256, BatchNorm, tanh, 4 residual
   blocks of two graph convolutions, 256 -> in, plus the input): part i sees the whole current
   body with its own 64-d noise tiled to every node, and writes back only its own joints; parts
   run in sequence (lower body, then upper body; or the five-part split). The inverse DCT gives
@@ -50,9 +50,11 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from jaxmotion.train.distributed import batch_rows, batch_sum
-from jaxmotion.eval.metrics import pairwise_sq_distances
-from jaxmotion.models.divsamp import bone_lengths, bone_vectors, condition_nodes, from_nodes
+from jaxmotion.nn.batch import batch_rows, batch_sum
+from jaxmotion.body.bones import bone_lengths, bone_vectors
+from jaxmotion.dct import condition_nodes, from_nodes
+from jaxmotion.losses import pairwise_sq_distances
+from jaxmotion.nn.execution import Execution
 from jaxmotion.nn.gcn import GCLStack, GraphConv
 
 PART_SPLITS = ("lower_upper", "five")
@@ -79,7 +81,6 @@ class GSPSConfig:
     n_pre: int = 10  # HumanEva-I: 8
     hidden: int = 256
     num_stage: int = 4
-    bn_running_var: str = "unbiased"  # BatchNorm running variance: PyTorch's (the release), or "biased" (flax's)
     nz: int = 64
     nk1: int = 10  # samples of the first part per window while training
     nk2: int = 10  # samples of the later parts per first-part sample
@@ -479,16 +480,15 @@ class PartGCN(nn.Module):
 
     hidden: int = 256
     num_stage: int = 4
-    bn_running_var: str = "unbiased"  # PyTorch's (the release); "biased" is flax's (nn/batchnorm.py)
-    precision: str = "float32"  # the graph convolutions' products: "float32" or "bf16" (nn/precision.py)
-    gcn_node_major: bool = True  # the GCL stack's inner layout (nn/gcn.py GCLStack.node_major); same outputs
+    execution: Execution = Execution()  # how it runs (the graph convolutions' precision and layout): nn/execution.py
 
     @nn.compact
     def __call__(self, h: Float[Array, "b j f"], z: Float[Array, "b z"], *, train: bool) -> Float[Array, "b j f"]:
         zj = jnp.broadcast_to(z[:, None, :], h.shape[:2] + z.shape[-1:])
         x = jnp.concatenate([h, zj], axis=-1)
-        y = GCLStack(self.hidden, self.num_stage, self.bn_running_var, self.precision, self.gcn_node_major, name="gcn")(x, train=train)
-        y = GraphConv(x.shape[-1], precision=self.precision, name="out")(y) + x
+        mm = self.execution.precision
+        y = GCLStack(self.hidden, self.num_stage, precision=mm, node_major=self.execution.gcn_node_major, name="gcn")(x, train=train)
+        y = GraphConv(x.shape[-1], precision=mm, name="out")(y) + x
         return y[..., : h.shape[-1]]
 
 
@@ -498,15 +498,13 @@ class GSPSGenerator(nn.Module):
     parts: tuple[tuple[int, ...], ...]
     hidden: int = 256
     num_stage: int = 4
-    bn_running_var: str = "unbiased"
-    precision: str = "float32"  # as PartGCN.precision (the flow prior keeps float32 always)
-    gcn_node_major: bool = True  # as PartGCN.gcn_node_major
+    execution: Execution = Execution()  # as PartGCN.execution (the flow prior keeps float32 always)
 
     @nn.compact
     def __call__(self, nodes: Float[Array, "b j f"], z: Float[Array, "b p z"], *, train: bool) -> Float[Array, "b j f"]:
         y = nodes
         for i, part in enumerate(self.parts):
-            out = PartGCN(self.hidden, self.num_stage, self.bn_running_var, self.precision, self.gcn_node_major, name=f"part_{i}")(y, z[:, i], train=train)
+            out = PartGCN(self.hidden, self.num_stage, self.execution, name=f"part_{i}")(y, z[:, i], train=train)
             idx = np.asarray(part)
             y = y.at[:, idx].set(out[:, idx])
         return y

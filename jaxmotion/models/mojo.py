@@ -43,10 +43,11 @@ import jax.numpy as jnp
 from flax import struct
 from jaxtyping import Array, ArrayLike, Float
 
-from jaxmotion.train.distributed import batch_rows
+from jaxmotion.nn.batch import batch_rows
 from jaxmotion.losses import dlow_diversity, kld_normal, min_of_k_sq_error, robust_kld
 from jaxmotion.models.cvae import DecodeCarry, DecodeInputs, GRUCVAE, cvae_objective, decode_k, sample_prior
 from jaxmotion.models.dlow import QTrunk
+from jaxmotion.nn.execution import Execution
 
 __all__ = ["MojoConfig", "MojoCVAE", "MojoQ", "DecodeCarry", "DecodeInputs", "decode_k", "sample_prior", "q_latents",
            "sample_mojo", "cvae_loss", "q_loss", "decoder_params", "decode_inputs", "decode_step", "latent_spectrum"]
@@ -91,9 +92,6 @@ class MojoConfig:
     baselines: tuple[str, ...] = ("zero_velocity", "mojo_prior")
     # Recursive projection: Levenberg-Marquardt steps per fitting stage (global, then body) per frame.
     proj_max_steps: int = 10
-    # Dense layers' initialisation (CVAE and Q): "torch" (default) is the release's nn.Linear;
-    # "flax" (nn.Dense) is what the tables before issue 11 were trained with.
-    dense_init: str = "torch"
 
     def __post_init__(self):
         if self.latent not in ("dct", "vector"):
@@ -132,11 +130,11 @@ class MojoCVAE(GRUCVAE):
     residual: bool = True
 
 
-def cvae_model(cfg: MojoConfig, dim: int, horizon: int, precision: str = "float32") -> MojoCVAE:
-    """Returns the CVAE module a `MojoConfig` describes (`precision`: its products', nn/precision.py)."""
+def cvae_model(cfg: MojoConfig, dim: int, horizon: int, execution: Execution = Execution()) -> MojoCVAE:
+    """Returns the CVAE module a `MojoConfig` describes, run as `execution` says (nn/execution.py)."""
     return MojoCVAE(
         dim=dim, horizon=horizon, nz=cfg.nz, nh_rnn=cfg.nh_rnn, nh_mlp=tuple(cfg.nh_mlp),
-        latent=cfg.latent, residual=cfg.residual, dense_init=cfg.dense_init, precision=precision,
+        latent=cfg.latent, residual=cfg.residual, execution=execution,
     )
 
 
@@ -191,29 +189,28 @@ class MojoQ(nn.Module):
     nh_rnn: int = 128
     nh_mlp: tuple[int, ...] = (1024, 512)
     shared_trunk: bool = True
-    dense_init: str = "torch"
-    precision: str = "float32"  # as QTrunk.precision
+    execution: Execution = Execution()  # as QTrunk.execution
 
     @nn.compact
     def __call__(self, x: Float[ArrayLike, "b t_his d"], eps: Float[ArrayLike, "b l z"]):
         if self.shared_trunk:
-            a, b = QTrunk(self.nz, self.nk, self.n_low, self.nh_rnn, tuple(self.nh_mlp), self.dense_init, self.precision, name="q")(x)
+            a, b = QTrunk(self.nz, self.nk, self.n_low, self.nh_rnn, tuple(self.nh_mlp), self.execution, name="q")(x)
         else:
             bands = nn.vmap(
                 QTrunk, variable_axes={"params": 0}, split_rngs={"params": True},
                 in_axes=None, out_axes=1, axis_size=self.n_low,
             )
-            a, b = bands(self.nz, self.nk, 1, self.nh_rnn, tuple(self.nh_mlp), self.dense_init, self.precision, name="q")(x)
+            a, b = bands(self.nz, self.nk, 1, self.nh_rnn, tuple(self.nh_mlp), self.execution, name="q")(x)
             a, b = a[:, :, 0], b[:, :, 0]
         z = jnp.exp(0.5 * a) * eps[:, :, None, :] + b  # (b, L, nk, nz)
         return jnp.swapaxes(z, 1, 2), a, b
 
 
-def q_model(cfg: MojoConfig, horizon: int, nk: int, precision: str = "float32") -> MojoQ:
+def q_model(cfg: MojoConfig, horizon: int, nk: int, execution: Execution = Execution()) -> MojoQ:
     """Returns the per-band DLow module of a `MojoConfig` for `nk` samples."""
     return MojoQ(
         nz=cfg.nz, nk=nk, n_low=num_low_bands(cfg, horizon), nh_rnn=cfg.q_nh_rnn,
-        nh_mlp=tuple(cfg.q_nh_mlp), shared_trunk=cfg.q_shared_trunk, dense_init=cfg.dense_init, precision=precision,
+        nh_mlp=tuple(cfg.q_nh_mlp), shared_trunk=cfg.q_shared_trunk, execution=execution,
     )
 
 

@@ -40,10 +40,10 @@ import numpy as np
 from jax import lax
 from jaxtyping import Array, Bool, Float, Int, Shaped
 
-from jaxmotion.train.distributed import batch_rows
-from jaxmotion.eval.metrics import MMSets, frame_parents, mm_errors_transferred, motion_transfer, motionmap_mm_sets  # noqa: F401 (re-exported)
+from jaxmotion.nn.batch import batch_rows
+from jaxmotion.body.bones import frame_parents, motion_transfer  # noqa: F401 (re-exported)
 from jaxmotion.nn.gru import GRU, GRUCell, gru_update
-from jaxmotion.nn.linear import DENSE_INITS, Conv1x1, Dense
+from jaxmotion.nn.linear import Conv1x1, Dense
 from jaxmotion.nn.mlp import MLP
 
 
@@ -62,9 +62,6 @@ class MotionMapConfig:
     nh_fuse: int = 256
     nh_uncertainty: int = 256
     n_uncertainty_layers: int = 5
-    # Dense and 1x1-convolution initialisation: "torch" (the release's nn.Linear / nn.Conv2d,
-    # U(+-1/sqrt(fan_in)) for weight and bias) or "flax" (lecun-normal, zero bias). GRUs: PyTorch's.
-    dense_init: str = "torch"
     hm_size: int = 64  # release: 128
     hm_sigma: float = 8.0**0.5  # release: covariance diag(8, 8)
     hm_channels: int = 8
@@ -101,13 +98,11 @@ class MotionMapConfig:
     def __post_init__(self):
         if self.k_protocol not in ("top_k", "release"):
             raise ValueError(f"MotionMapConfig.k_protocol must be 'top_k' or 'release', got {self.k_protocol!r}")
-        if self.dense_init not in DENSE_INITS:
-            raise ValueError(f"MotionMapConfig.dense_init must be one of {DENSE_INITS}, got {self.dense_init!r}")
 
 
-# Motion transfer and MotionMap's multimodal ground truth (appendix A) are evaluation as much as
-# training: they live in `jaxmotion.eval.metrics` (`motion_transfer`, `motionmap_mm_sets`) and are
-# re-exported here.
+# Motion transfer (appendix A) is shared with evaluation: it lives with the skeleton's bones
+# (`jaxmotion.body.bones.motion_transfer`) and is re-exported here. MotionMap's multimodal ground
+# truth, built on it, is the evaluation protocol's (`jaxmotion.eval.metrics.motionmap_mm_sets`).
 
 
 # --------------------------------------------------------------------------------------------
@@ -290,11 +285,10 @@ class Decoder(nn.Module):
     dim: int
     t_total: int
     nh: int = 128
-    dense_init: str = "torch"
 
     @nn.compact
     def __call__(self, fused: Float[Array, "b f"], x0: Float[Array, "b d"]) -> Float[Array, "b t d"]:
-        h0 = jnp.tanh(Dense(self.nh, rule=self.dense_init, name="h0")(fused))
+        h0 = jnp.tanh(Dense(self.nh, name="h0")(fused))
         cell = GRUCell(self.nh, name="cell")
         cell(h0, fused)  # creates the parameters at init
         p = cell.variables["params"]
@@ -305,7 +299,7 @@ class Decoder(nn.Module):
             return h, h
 
         _, hs = lax.scan(step, h0, None, length=self.t_total)
-        return x0[:, None] + Dense(self.dim, rule=self.dense_init, name="out")(jnp.swapaxes(hs, 0, 1))
+        return x0[:, None] + Dense(self.dim, name="out")(jnp.swapaxes(hs, 0, 1))
 
 
 class MotionMapAE(nn.Module):
@@ -318,16 +312,15 @@ class MotionMapAE(nn.Module):
     nh_fuse: int = 256
     nh_uncertainty: int = 256
     n_uncertainty_layers: int = 5
-    dense_init: str = "torch"
 
     def setup(self):
-        init = self.dense_init
+        # Dense layers and 1x1 convolutions initialised as the release's nn.Linear / nn.Conv2d (nn/linear.py).
         self.enc_x = GRU(self.nh_rnn)
         self.enc_y = GRU(self.nh_rnn)
-        self.fusion = MLP((self.nh_fuse, self.nh_fuse), dense_init=init)
-        self.decoder = Decoder(self.dim, self.t_his + self.t_pred, self.nh_rnn, init)
-        self.uncertainty = MLP((self.nh_uncertainty,) * self.n_uncertainty_layers, activation="elu", dense_init=init)
-        self.uncertainty_out = Dense((self.t_his + self.t_pred) * (self.dim // 3), rule=init)
+        self.fusion = MLP((self.nh_fuse, self.nh_fuse))
+        self.decoder = Decoder(self.dim, self.t_his + self.t_pred, self.nh_rnn)
+        self.uncertainty = MLP((self.nh_uncertainty,) * self.n_uncertainty_layers, activation="elu")
+        self.uncertainty_out = Dense((self.t_his + self.t_pred) * (self.dim // 3))
 
     def encode_x(self, x: Float[Array, "b t_his d"]) -> Float[Array, "b h"]:
         return self.enc_x(x, last_only=True)
@@ -354,27 +347,26 @@ class HeatmapNet(nn.Module):
     channels: int = 8
     n_convs: int = 6
     frames: int = 3
-    dense_init: str = "torch"
 
     @nn.compact
     def __call__(self, x: Float[Array, "b t d"]) -> Float[Array, "b size size"]:
         h = GRU(self.nh_rnn, name="context")(x[:, -self.frames :], last_only=True)
         h = nn.LayerNorm(name="norm")(nn.elu(h))
-        m = nn.elu(Dense(self.size * self.size, rule=self.dense_init, name="to_map")(h)).reshape(-1, self.size, self.size, 1)
+        m = nn.elu(Dense(self.size * self.size, name="to_map")(h)).reshape(-1, self.size, self.size, 1)
 
         for i in range(self.n_convs):
-            m = nn.elu(Conv1x1(self.channels, self.dense_init, name=f"conv_{i}")(m))
-        return Conv1x1(1, self.dense_init, name="final")(m)[..., 0]
+            m = nn.elu(Conv1x1(self.channels, name=f"conv_{i}")(m))
+        return Conv1x1(1, name="final")(m)[..., 0]
 
 
 def ae_model(c: MotionMapConfig, dim: int, t_his: int, t_pred: int) -> MotionMapAE:
     """Returns the autoencoder a `MotionMapConfig` describes."""
-    return MotionMapAE(dim, t_his, t_pred, c.nh_rnn, c.nh_fuse, c.nh_uncertainty, c.n_uncertainty_layers, c.dense_init)
+    return MotionMapAE(dim, t_his, t_pred, c.nh_rnn, c.nh_fuse, c.nh_uncertainty, c.n_uncertainty_layers)
 
 
 def heatmap_model(c: MotionMapConfig) -> HeatmapNet:
     """Returns the heatmap network a `MotionMapConfig` describes."""
-    return HeatmapNet(c.hm_size, c.nh_rnn, c.hm_channels, c.hm_convs, c.descriptor_frames, c.dense_init)
+    return HeatmapNet(c.hm_size, c.nh_rnn, c.hm_channels, c.hm_convs, c.descriptor_frames)
 
 
 def reconstruction_loss(

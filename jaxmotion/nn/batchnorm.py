@@ -3,14 +3,13 @@
 Both frameworks normalise a training batch by its biased variance. They differ in what they keep
 for evaluation: flax's `nn.BatchNorm` averages the biased batch variance into `var`, PyTorch the
 unbiased one (times n / (n - 1), n the number of values per feature in the batch: 6.7% at batch
-16). Every reference implementation here is PyTorch, so `running_var="unbiased"` is the default;
-`"biased"` keeps flax's statistics (the tables before issue 11). Parameter and statistic names
+16). Every reference implementation here is PyTorch, so the running variance is PyTorch's. Parameter and statistic names
 (`scale`, `bias`; `batch_stats/mean`, `batch_stats/var`) and the momentum convention
 (`running = momentum * running + (1 - momentum) * batch`, i.e. PyTorch's momentum 0.1 is 0.9
 here) are flax's, so checkpoints of either kind load into the other.
 
 Inside the data-parallel train step the batch moments are the whole global batch's: each device's
-moments are averaged over the devices (`distributed.batch_mean`, equal shares), as one device
+moments are averaged over the devices (`batch.batch_mean`, equal shares), as one device
 computes them.
 """
 
@@ -22,10 +21,7 @@ import flax.linen as nn
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from jaxmotion.train import distributed
-
-RUNNING_VARS = ("unbiased", "biased")
-
+from jaxmotion.nn import batch
 
 class BatchNorm(nn.Module):
     """Returns `scale * (x - mean) / sqrt(var + eps) + bias`, statistics per feature over every leading axis."""
@@ -33,7 +29,6 @@ class BatchNorm(nn.Module):
     use_running_average: bool
     momentum: float = 0.9
     epsilon: float = 1e-5
-    running_var: str = "unbiased"
     # Node-major input `(J, ..., F)` (nn/gcn.py's GCL stacks): the features are the J * F pairs
     # (j, f), numbered j * F + f as in the flattened `(..., J * F)` layout, so the parameters and
     # statistics are the same arrays in either layout; statistics over the middle axes.
@@ -41,8 +36,6 @@ class BatchNorm(nn.Module):
 
     @nn.compact
     def __call__(self, x: Float[ArrayLike, "... f"]) -> Float[Array, "... f"]:
-        if self.running_var not in RUNNING_VARS:
-            raise ValueError(f"BatchNorm.running_var must be one of {RUNNING_VARS}, got {self.running_var!r}")
         x = jnp.asarray(x)
         if self.node_major:  # features (J, F) at both ends, statistics over the middle axes
             view = (x.shape[0],) + (1,) * (x.ndim - 2) + (x.shape[-1],)
@@ -57,11 +50,11 @@ class BatchNorm(nn.Module):
         if self.use_running_average:
             mean, var = ra_mean.value.reshape(view), ra_var.value.reshape(view)
         else:
-            mean = distributed.batch_mean(jnp.mean(x, axis=axes, keepdims=True))
-            var = distributed.batch_mean(jnp.mean(jnp.square(x - mean), axis=axes, keepdims=True))
+            mean = batch.batch_mean(jnp.mean(x, axis=axes, keepdims=True))
+            var = batch.batch_mean(jnp.mean(jnp.square(x - mean), axis=axes, keepdims=True))
             if not self.is_initializing():
-                n = math.prod(x.shape[a] for a in axes) * distributed.batch_parts()
-                keep = var * (n / (n - 1)) if self.running_var == "unbiased" and n > 1 else var
+                n = math.prod(x.shape[a] for a in axes) * batch.batch_parts()
+                keep = var * (n / (n - 1)) if n > 1 else var  # the unbiased variance
                 m = self.momentum
                 ra_mean.value = m * ra_mean.value + (1.0 - m) * mean.reshape(-1)
                 ra_var.value = m * ra_var.value + (1.0 - m) * keep.reshape(-1)

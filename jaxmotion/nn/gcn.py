@@ -11,7 +11,7 @@ A GCL-BN-Tanh block normalises each of the J * F outputs separately (PyTorch `Ba
 on the flattened features, as in the releases), so the BatchNorm statistics live in the
 `batch_stats` collection: apply with `train=True, mutable=["batch_stats"]` while training and
 `train=False` (running averages) to evaluate. The running variance is kept as PyTorch keeps it
-(unbiased) unless `running_var="biased"` (flax's; see nn/batchnorm.py).
+(unbiased; nn/batchnorm.py).
 """
 
 from __future__ import annotations
@@ -66,7 +66,6 @@ class GCLBlock(nn.Module):
     """
 
     features: int
-    running_var: str = "unbiased"
     precision: str = "float32"  # as GraphConv.precision
     node_major: bool = False  # as GraphConv.node_major
 
@@ -74,8 +73,7 @@ class GCLBlock(nn.Module):
     def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool) -> Float[Array, "... j o"]:
         x = GraphConv(self.features, precision=self.precision, node_major=self.node_major, name="gc")(h)
         bn = BatchNorm(
-            use_running_average=not train, momentum=0.9, epsilon=1e-5, running_var=self.running_var,
-            node_major=self.node_major, name="bn",
+            use_running_average=not train, momentum=0.9, epsilon=1e-5, node_major=self.node_major, name="bn",
         )
         if self.node_major:
             return jnp.tanh(bn(x))
@@ -87,14 +85,13 @@ class ResidualGCLBlock(nn.Module):
     """Returns `H + GCL(GCL(H))`: two GCL-BN-Tanh layers with a skip connection (`ResGCB` in the releases)."""
 
     features: int
-    running_var: str = "unbiased"
     precision: str = "float32"  # as GraphConv.precision
     node_major: bool = False  # as GraphConv.node_major
 
     @nn.compact
     def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool) -> Float[Array, "... j f"]:
-        x = GCLBlock(h.shape[-1], self.running_var, self.precision, self.node_major, name="gcl_0")(h, train=train)
-        x = GCLBlock(self.features, self.running_var, self.precision, self.node_major, name="gcl_1")(x, train=train)
+        x = GCLBlock(h.shape[-1], self.precision, self.node_major, name="gcl_0")(h, train=train)
+        x = GCLBlock(self.features, self.precision, self.node_major, name="gcl_1")(x, train=train)
         return x + h
 
 
@@ -115,7 +112,6 @@ class GCLStack(nn.Module):
 
     features: int
     num_residual: int
-    running_var: str = "unbiased"
     precision: str = "float32"  # as GraphConv.precision
     node_major: bool = True
 
@@ -124,7 +120,7 @@ class GCLStack(nn.Module):
         nm = self.node_major
         if nm:
             h = jnp.moveaxis(jnp.asarray(h), -2, 0)
-        h = GCLBlock(self.features, self.running_var, self.precision, nm, name="gcl_in")(h, train=train)
+        h = GCLBlock(self.features, self.precision, nm, name="gcl_in")(h, train=train)
         for i in range(self.num_residual):
-            h = ResidualGCLBlock(self.features, self.running_var, self.precision, nm, name=f"res_{i}")(h, train=train)
+            h = ResidualGCLBlock(self.features, self.precision, nm, name=f"res_{i}")(h, train=train)
         return jnp.moveaxis(h, 0, -2) if nm else h

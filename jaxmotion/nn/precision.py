@@ -11,7 +11,8 @@ float32 whatever the option: GSPS's flow prior (its log-determinant and exact in
 and the action classifier behind CMD / FID.
 
 Layers take the choice as a module attribute (`precision`), a static part of the module, so a jitted
-function traced with one choice is never reused for the other.
+function traced with one choice is never reused for the other; a model reads it from its
+`Execution` (nn/execution.py).
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-PRECISIONS = ("float32", "bf16")
+from jaxmotion.nn.execution import PRECISIONS
 
 
 def check(precision: str, what: str = "precision") -> str:

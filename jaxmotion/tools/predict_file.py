@@ -258,7 +258,7 @@ def predict_file(
     for i, b in enumerate(fitted):
         written.append(write_bvh(out / f"future_{i:02d}.bvh", b, end_sites))
     if gif:
-        from jaxmotion.tools.animate import animate_futures
+        from jaxmotion.pictures.animate import animate_futures
 
         written.append(animate_futures(
             x, kept_f, gt, tuple(lay["parents"]), out / "samples.gif", fps=fps,

@@ -220,7 +220,7 @@ def predict_markers(
     )  # fmt: skip
     written = [out / "futures.npz"]
     if gif:
-        from jaxmotion.tools.animate import animate_futures
+        from jaxmotion.pictures.animate import animate_futures
 
         written.append(animate_futures(
             x, futures, gt, tuple(lay["parents"]), out / "samples.gif", fps=fps,

@@ -25,77 +25,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxmotion.config import Config, to_dict
+from jaxmotion.config import Config
 from jaxmotion.data.types import MotionDataset, Skeleton
 from jaxmotion.errors import CheckpointError, ConfigError, UsageError
-from jaxmotion.formats.atomic import write_text_atomic
-
-MANIFEST = "predictor.json"
-VERSION = 1
-
-
-def layout(ds: MotionDataset) -> dict:
-    """Returns the frame layout of `ds`: what a model's input and output vectors mean."""
-    marker = ds.info.get("frames") == "global"
-    return {
-        "joints": list(ds.skeleton.names),
-        "parents": [int(p) for p in ds.skeleton.parents],
-        "root": ds.skeleton.names[0],
-        "frames": "global" if marker else "root_relative",
-        "canonicalisation": "per window at its first frame (PROTOCOL sec. 4)" if marker else None,
-        "vector": "joints 1..J-1 x (x, y, z), root dropped" if not marker else "markers x (x, y, z), origin dropped",
-        "units": "m",
-        "fps": float(ds.fps),
-        "t_his": int(ds.t_his),
-        "t_pred": int(ds.t_pred),
-        "dim": int(ds.dim),
-        "up_axis": ds.info.get("up_axis"),
-        "mm_threshold": float(ds.mm_threshold),
-    }
-
-
-def bone_lengths(ds: MotionDataset) -> list[float] | None:
-    """Returns the median length (m) of every bone `parent(j) -> j` over the training frames (None without joints)."""
-    if ds.info.get("frames") == "global" or not ds.train:
-        return None
-    parents = np.asarray(ds.skeleton.parents)
-    child = np.nonzero(parents >= 0)[0]
-    lengths = [np.linalg.norm(s.positions[::10, child] - s.positions[::10, parents[child]], axis=-1) for s in ds.train]
-    med = np.median(np.concatenate(lengths), axis=0)
-    out = np.zeros(len(parents))
-    out[child] = med
-    return [round(float(v), 5) for v in out]
-
-
-def write_manifest(cfg: Config, ds: MotionDataset, workdir: str | Path, data: str | None = None) -> Path:
-    """Writes `workdir/predictor.json` (module docstring) and returns its path."""
-    workdir = Path(workdir)
-    workdir.mkdir(parents=True, exist_ok=True)
-    manifest = {
-        "version": VERSION,
-        "method": cfg.method,
-        "dataset": {"name": ds.name, "source": _absolute(data or ds.info.get("source") or cfg.dataset), "options": dict(cfg.data_options)},
-        "layout": layout(ds),
-        "bone_lengths": bone_lengths(ds),
-        "config": to_dict(cfg),
-    }
-    path = workdir / MANIFEST
-    return write_text_atomic(path, json.dumps(manifest, indent=1, default=_json_default))
-
-
-def _absolute(source: str) -> str:
-    """Returns a data path made absolute where it exists (so a run's data is found from any folder); other sources unchanged."""
-    p = Path(str(source)).expanduser()
-    return str(p.resolve()) if p.exists() else str(source)
-
-
-def _json_default(v):
-    if isinstance(v, (np.integer, np.floating)):
-        return v.item()
-    if isinstance(v, (np.ndarray, tuple)):
-        return list(v)
-    return str(v)
-
+from jaxmotion.train.manifest import MANIFEST, VERSION, bone_lengths, layout, write_manifest  # noqa: F401 (public here too)
 
 def config_from_dict(d: dict) -> Config:
     """Returns the `Config` that `config.to_dict` wrote (the method's settings rebuilt from `method_config_type`)."""

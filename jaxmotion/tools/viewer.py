@@ -42,7 +42,7 @@ from jaxmotion.eval import metrics
 from jaxmotion.errors import DataError
 from jaxmotion.formats.atomic import atomic_path
 from jaxmotion.tools.predictor import MotionPredictor, run_config
-from jaxmotion.tools.viz import frames_to_joints, view_axes
+from jaxmotion.pictures.viz import frames_to_joints, view_axes
 
 TRUTH_COLOR = "#e6007e"  # magenta: no future (viridis) or multimodal future (orange) is drawn in it
 OBSERVED_COLOR = "#9a9a9a"

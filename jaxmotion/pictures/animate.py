@@ -20,7 +20,7 @@ from matplotlib.animation import FFMpegWriter, FuncAnimation, PillowWriter  # no
 from matplotlib.collections import LineCollection  # noqa: E402
 
 from jaxmotion.formats.atomic import atomic_path  # noqa: E402
-from jaxmotion.tools.viz import frames_to_joints, view_axes  # noqa: E402
+from jaxmotion.pictures.viz import frames_to_joints, view_axes  # noqa: E402
 
 
 def _segments(pose: np.ndarray, parents, h: int, v: int) -> np.ndarray:
