@@ -4,7 +4,7 @@ A model file holds its paper's equations; how they run on a machine is `Executio
 by the method (`jaxmotion.methods.common.execution(cfg)`) to every model it builds. Every choice but
 `precision` gives the same numbers up to the order of float sums (each fast form is tested against
 the readable definition); `precision="bf16"` rounds the weight products' operands (nn/precision.py).
-The A/B measurements behind each default are in benchmarks/README.md (`benchmarks/ab.py --ab NAME`).
+The A/B measurements behind each default are in benchmarks/results/optimisations.md (`benchmarks/ab.py --ab NAME`).
 
 This module imports nothing but the standard library, so the config layer reads `PRECISIONS` from
 here without loading jax.
@@ -27,7 +27,7 @@ class Execution:
     # The GRU CVAE decoder loop's backward pass (models/cvae.py, DLow and MOJO): "batched" computes each
     # weight's gradient as one product over all steps after the loop (nn/decoder_loop.py; float32 only,
     # bf16 falls back to "autodiff"); "autodiff" differentiates the loop (a product and an accumulation
-    # per step and weight). Benchmarks/README.md, "Batched weight gradients of the decoder loop".
+    # per step and weight). benchmarks/results/optimisations.md, "Batched weight gradients of the decoder loop".
     decoder_backward: str = "batched"
     # With decoder_backward="autodiff": the loop's backward pass keeps each step's matrix products and
     # recomputes the gates' elementwise work (jax.checkpoint_policies.dots_saveable) instead of stacking
