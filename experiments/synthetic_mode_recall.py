@@ -1,4 +1,4 @@
-"""Every method of the library on the synthetic data, one table of mode recall at K = 50, 6 and 5 (issues 12-14).
+"""Every method of the library on the synthetic data, one table of mode recall at K = 50, 6 and 5.
 
     flock /tmp/jaxmotion-heavy.lock python experiments/synthetic_mode_recall.py --out ~/jaxmotion-runs/synthetic_all \
         [--budget 3] [--seeds 0 1 2] [--methods dlow divsamp mojo gsps motionmap] [--markdown experiments/results/synthetic_mode_recall.md]

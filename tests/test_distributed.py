@@ -1,4 +1,4 @@
-"""Data parallelism (issue 17): a run sharded over 4 devices, or over 2 processes, is the one-device run.
+"""Data parallelism: a run sharded over 4 devices, or over 2 processes, is the one-device run.
 
 This file is also the worker the tests start (`python tests/test_distributed.py one|devices|process ...`):
 the pytest process already has JAX with one CPU device, so 4 devices

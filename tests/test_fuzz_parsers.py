@@ -1,4 +1,4 @@
-"""Fuzzed parsers (issue 15): mutated BVH, C3D and npz files parse to finite data or raise `DataError`.
+"""Fuzzed parsers: mutated BVH, C3D and npz files parse to finite data or raise `DataError`.
 
 Valid files (fabricated here, plus the shared BVH and C3D files when `../shared/data` is present)
 are mutated by truncation, byte flips, deleted and duplicated lines, wrong channel counts, absurd

@@ -1,4 +1,4 @@
-"""Killed runs resume exactly (issue 15): `jaxmotion train` as a subprocess, SIGKILLed, then `--resume`.
+"""Killed runs resume exactly: `jaxmotion train` as a subprocess, SIGKILLed, then `--resume`.
 
 A run is killed, then resumed (and killed again, then resumed), at moments picked by watching its work
 directory: after a random checkpoint of the first stage, during a checkpoint write (an orbax temporary

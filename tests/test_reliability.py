@@ -1,4 +1,4 @@
-"""Reliability (issue 15): corrupt checkpoints, failed writes, BVH folders, NaN at load, config validation.
+"""Reliability: corrupt checkpoints, failed writes, BVH folders, NaN at load, config validation.
 
 The kill-and-resume tests of `jaxmotion train` as a subprocess are in `test_kill_resume.py`.
 """
