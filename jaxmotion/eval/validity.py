@@ -49,7 +49,7 @@ def from_gsps_run(cfg, ds, params: dict) -> PoseValidity:
     mc = cfg.method_config if cfg.method_config is not None else gsps.GSPSConfig()
     if not isinstance(mc, gsps.GSPSConfig):
         raise TypeError(f"from_gsps_run: config {cfg.name!r} is not a GSPS run's (method_config {type(mc).__name__})")
-    c = gsps.check_config(mc)
+    c = mc  # a GSPSConfig checks itself when made
     return PoseValidity(
         names=tuple(ds.skeleton.names), parents=tuple(int(p) for p in ds.skeleton.parents),
         bounds=np.asarray(params["angle_bounds"]["bounds"], np.float32),

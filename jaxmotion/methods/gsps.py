@@ -31,8 +31,8 @@ from jaxmotion.train.loop import bn_optimizer, lr_schedule
 
 
 def settings(cfg) -> GSPSConfig:
-    """Returns the checked `cfg.method_config` (the defaults when it is None)."""
-    return gsps.check_config(METHOD.settings(cfg))
+    """Returns `cfg.method_config` (the defaults when it is None); `GSPSConfig` checks itself when made."""
+    return METHOD.settings(cfg)
 
 
 def _skeleton(ds, c: GSPSConfig):

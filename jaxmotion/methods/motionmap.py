@@ -39,14 +39,8 @@ from jaxmotion.models.motionmap import MotionMapConfig
 
 
 def settings(cfg) -> MotionMapConfig:
-    """Returns the checked `cfg.method_config` (the defaults when it is None)."""
-    c = METHOD.settings(cfg)
-    if c.descriptor_frames < 1 or c.hm_size < 8 or c.peak_min_distance < 1 or not 0 <= c.peak_threshold_rel < 1:
-        raise ValueError(
-            f"MotionMapConfig: need descriptor_frames >= 1, hm_size >= 8, peak_min_distance >= 1 and "
-            f"0 <= peak_threshold_rel < 1, got {c.descriptor_frames}, {c.hm_size}, {c.peak_min_distance}, {c.peak_threshold_rel}"
-        )
-    return c
+    """Returns `cfg.method_config` (the defaults when it is None); `MotionMapConfig` checks itself when made."""
+    return METHOD.settings(cfg)
 
 
 class Pool:

@@ -97,6 +97,9 @@ class DivSampConfig:
     diversity: str = "hinge"  # "hinge" (Eq. (13)) | "exp" (DLow's exp(-D^2 / d_scale), ablation)
     d_scale: float = 50.0  # exp diversity scale (the release's `dlow_scale`)
 
+    def __post_init__(self):  # the settings check themselves: a bad value fails where it is written
+        check_config(self)
+
 
 def check_config(c: DivSampConfig) -> DivSampConfig:
     """Returns `c` after checking its choices, raising a ValueError that names the bad field."""

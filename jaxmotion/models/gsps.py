@@ -112,6 +112,9 @@ class GSPSConfig:
     mm_pred_threshold: float = 0.1
     mm_num: int = 10
 
+    def __post_init__(self):  # the settings check themselves: a bad value fails where it is written
+        check_config(self)
+
 
 def check_config(c: GSPSConfig) -> GSPSConfig:
     """Returns `c` after checking it, raising a ValueError that names the bad field."""

@@ -95,9 +95,15 @@ class MotionMapConfig:
     ft_steps: int = 500
     mm_cache_dir: str | None = None  # where MM ground-truth sets are cached (None: not cached)
 
-    def __post_init__(self):
+    def __post_init__(self):  # the settings check themselves: a bad value fails where it is written
         if self.k_protocol not in ("top_k", "release"):
             raise ValueError(f"MotionMapConfig.k_protocol must be 'top_k' or 'release', got {self.k_protocol!r}")
+        if self.descriptor_frames < 1 or self.hm_size < 8 or self.peak_min_distance < 1 or not 0 <= self.peak_threshold_rel < 1:
+            raise ValueError(
+                f"MotionMapConfig: need descriptor_frames >= 1, hm_size >= 8, peak_min_distance >= 1 and 0 <= "
+                f"peak_threshold_rel < 1, got {self.descriptor_frames}, {self.hm_size}, {self.peak_min_distance}, "
+                f"{self.peak_threshold_rel}"
+            )
 
 
 # Motion transfer (appendix A) is shared with evaluation: it lives with the skeleton's bones
