@@ -61,7 +61,7 @@ PROJECTION_BENCH = "projection_bench_steps6.json"
 VALIDITY = "validity_bandai_shared_budget.json"  # experiments/validity_table.py
 DIVSAMP_K_SWEEP = "divsamp_k_sweep_bandai.json"  # experiments/divsamp_k_sweep.py
 DIVSAMP_ABLATION = "divsamp_ablation_bandai.json"  # experiments/divsamp_ablation.py
-DIFFUSION_STEPS = "diffusion_steps_bandai.json"  # experiments/diffusion_steps.py
+DIFFUSION_STEPS = "diffusion_steps_bandai_long.json"  # experiments/diffusion_steps.py on the long-budget run
 MOJO_PROJECTION = "mojo_projection_bandai.json"  # experiments/mojo_projection_table.py
 ON_SKELETON = "projection_bandai.json"  # experiments/projection_effect.py  # benchmarks/projection.py --max-steps 6
 # benchmarks/run.py: three full runs of the same code, back to back.
@@ -342,7 +342,7 @@ def method_experiments() -> list[str]:
         _table(d["rows"], [("DDIM steps", "steps"), ("K", "K"), *metrics, ("s per batch", "batch_s")]),
         f"`python experiments/diffusion_steps.py --config {m['config']}` on one trained run (seed {m['seed']}), "
         f"{m['n_windows']} of the {m['n_test_windows']} test windows, batches of {m['batch']} ({m['cpu']}, "
-        f"jax {m['jax_version']}; `{DIFFUSION_STEPS}`).")
+        f"jax {m['jax_version']}; `{DIFFUSION_STEPS}`). " + (m.get("note", "") + ".").lstrip("."))
     return out
 
 
