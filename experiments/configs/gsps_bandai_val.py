@@ -20,7 +20,7 @@
 # Rule for the choice (fixed before the runs): the lowest ADE, FDE breaking a tie within 1%. The
 # differences are small at this budget and every curve was still falling at step 1,000 (ADE -5% over
 # the last 250 steps), so the ranking is a first one: h36m trades 1-3% of error for 10% of APD.
-# gsps_bandai_long.py uses the chosen values.
+# gsps_bandai_long_scaled.py uses the chosen values.
 import dataclasses
 from pathlib import Path
 
