@@ -79,7 +79,7 @@ def evaluators(cfg: Config, method: Method, prep: Prepared, params: dict) -> tup
     ds, source, dev = prep.dataset, mm_source(cfg, method), deviation(cfg.mm_deviation)
     if dev.needs_test_sets and source != "test":
         raise ValueError(f"mm_deviation={dev.name!r} needs test-window reference futures; the MM ground truth here is {source!r}")
-    if dev.skips_windows():  # the windows it skips enter no metric; the others are scored by the protocol
+    if dev.skips_windows:  # the windows it skips enter no metric; the others are scored by the protocol
         prep, dev = select_windows(prep, multi_future_windows(prep.x[:, -1], ds.mm_threshold)), PROTOCOL
     truth = reference(source).build(prep)
     out = [ProtocolMetrics(prep.y, truth, dev, poses=prep.x[:, -1])]

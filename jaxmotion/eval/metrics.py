@@ -513,15 +513,18 @@ def _chunk_metrics(pred, gt, futures, idx, mask, targets=None, parents=None):
     }
 
 
+def _piece(piece) -> np.ndarray | jax.Array:
+    # One (n_c, K, t_pred, D) piece of the predictions, as an array.
+    piece = piece if hasattr(piece, "shape") else np.asarray(piece)
+    if piece.ndim != 4:
+        raise ValueError(f"evaluate_windows: `pred` (or a chunk of it) must be (n, K, t_pred, D), got {tuple(piece.shape)}")
+    return piece
+
+
 def _pieces(pred) -> Iterator[np.ndarray | jax.Array]:
     # `pred` as a sequence of (n_c, K, t_pred, D) pieces: the whole array is one piece.
     for piece in [pred] if hasattr(pred, "shape") else pred:
-        piece = piece if hasattr(piece, "shape") else np.asarray(piece)
-        if piece.ndim != 4:
-            raise ValueError(
-                f"evaluate_windows: `pred` (or a chunk of it) must be (n, K, t_pred, D), got {tuple(piece.shape)}"
-            )
-        yield piece
+        yield _piece(piece)
 
 
 class WindowMetricStream:
@@ -558,7 +561,7 @@ class WindowMetricStream:
 
     def add(self, piece) -> None:
         """Scores the next `(n_c, K, t_pred, D)` predictions (windows `[seen, seen + n_c)`)."""
-        for chunk in self._chunks(next(_pieces(piece))):
+        for chunk in self._chunks(_piece(piece)):
             self._chunk(chunk)
 
     def _chunks(self, piece):

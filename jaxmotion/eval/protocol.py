@@ -47,10 +47,7 @@ class Deviation:
 
     name: str | None = None
     needs_test_sets: bool = False  # only defined on the test windows' own sets
-
-    def skips_windows(self) -> bool:
-        """Returns whether windows whose set is themselves alone are left out of every metric."""
-        return False
+    skips_windows: bool = False  # windows whose set is themselves alone are left out of every metric
 
     def used(self, mask: np.ndarray, idx: np.ndarray, is_self: np.ndarray, poses: ArrayLike | None) -> np.ndarray:
         """Returns the members that enter the MM terms."""
@@ -102,9 +99,7 @@ class CoMusionRelease(Deviation):
 class GSPSRelease(Deviation):
     name: str | None = "gsps"
     needs_test_sets: bool = True
-
-    def skips_windows(self) -> bool:
-        return True
+    skips_windows: bool = True
 
 
 PROTOCOL, DIVSAMP, COMUSION, GSPS = Deviation(), DivSampRelease(), CoMusionRelease(), GSPSRelease()
