@@ -9,6 +9,9 @@ metric, one line per predictor, and prints, per stage and predictor, each metric
 last value and its relative change over the last `--tail` of the stage's steps: the "flattened?"
 figure (a metric that still moves by several percent over the last fifth has not converged).
 Several runs of one config (seeds) are drawn into one figure with `--overlay OUT.png`.
+`--json-dir DIR` also writes each run's points as `DIR/<config name>_s<seed>_curve.json`
+(`{"run": ..., "curve": [{stage, step, predictor, APD, ADE, ...}, ...]}`), the form kept beside a
+long run's `metrics.json` in `experiments/results/long/`; `--about TEXT` adds how the run was made.
 """
 
 from __future__ import annotations
@@ -68,6 +71,18 @@ def summary(curves: dict, tail: float) -> list[str]:
     return lines
 
 
+def curve_record(run: Path, curves: dict, about: str = "") -> tuple[str, dict]:
+    """Returns `(file name, {"run": ..., "curve": [...]})` for a run's curves, named by its config and seed."""
+    meta = json.loads((run / "predictor.json").read_text()) if (run / "predictor.json").exists() else {}
+    cfg = meta.get("config", {})
+    name, seed = cfg.get("name", run.name), cfg.get("seed")
+    stem = f"{name}_s{seed}" if seed is not None else name
+    desc = f"experiments/configs/{name}.py" + (f", seed {seed}" if seed is not None else "") + (f"; {about}" if about else "")
+    points = [{"stage": stage, "step": step, "predictor": pred, **m}
+              for stage, preds in curves.items() for pred, pts in preds.items() for step, m in pts]
+    return f"{stem}_curve.json", {"run": desc, "curve": points}
+
+
 def plot(runs: list[tuple[str, dict]], out: Path) -> None:
     """Draws the curves of one or more runs (same stages) into `out`."""
     import matplotlib
@@ -111,6 +126,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out-dir", type=Path, default=None)
     ap.add_argument("--overlay", type=Path, default=None, help="one figure of every run (seeds of one config)")
     ap.add_argument("--tail", type=float, default=0.2)
+    ap.add_argument("--json-dir", type=Path, default=None, help="also write <config>_s<seed>_curve.json files here")
+    ap.add_argument("--about", default="", help="how the runs were made, kept in the JSON files")
     args = ap.parse_args(argv)
     loaded, missing = [], []
     for run in args.runs:
@@ -122,6 +139,11 @@ def main(argv=None) -> int:
         out = (args.out_dir / f"{run.name}_curves.png") if args.out_dir else run / "curves.png"
         plot([(run.name, curves)], out)
         print(f"# {run}: {out}")
+        if args.json_dir:
+            fname, rec = curve_record(run, curves, args.about)
+            args.json_dir.mkdir(parents=True, exist_ok=True)
+            (args.json_dir / fname).write_text(json.dumps(rec, indent=1) + "\n")
+            print(f"# {run}: {args.json_dir / fname}")
         print("\n".join(summary(curves, args.tail)))
     if args.overlay and loaded:
         plot(loaded, args.overlay)

@@ -46,6 +46,13 @@ def test_curves_logged_per_stage_and_plotted(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "dlow_k5" in out and "last 20% of steps" in out
     assert mod.main([str(tmp_path / "cvae")]) == 1  # a folder without curve lines is reported, not drawn
+    # --json-dir keeps every point, named by the run's config and seed.
+    assert mod.main([str(tmp_path), "--out-dir", str(tmp_path / "png"), "--json-dir", str(tmp_path / "json"), "--about", "a test"]) == 0
+    rec = json.loads((tmp_path / "json" / f"{cfg.name}_s{cfg.seed}_curve.json").read_text())
+    assert rec["run"].endswith("a test")
+    assert len(rec["curve"]) == sum(len(r["predictors"]) for r in cvae + q)
+    last = [p for p in rec["curve"] if p["stage"] == "dlow_k5" and p["predictor"] == "dlow"][-1]
+    assert last["step"] == 20 and last["ADE"] == q[-1]["predictors"]["dlow"]["ADE"]
 
 
 def test_a_motionmap_run_has_no_curve_point_before_its_heatmap_stage():
