@@ -30,7 +30,7 @@ from jaxmotion.eval.loop import format_record, predict_chunks
 from jaxmotion.method import Predictor
 from jaxmotion.methods import get_method
 from jaxmotion.eval.metrics import multimodal_gt
-from jaxmotion.train.manifest import write_manifest
+from jaxmotion.train.manifest import MANIFEST, write_manifest
 from jaxmotion.train import runner
 
 __all__ = ["get_method", "resolve", "load_data", "Prepared", "prepare", "check_lengths", "train", "restore", "predictors",
@@ -110,7 +110,7 @@ def evaluate(
     `cfg` is resolved (`resolve`). `manifest`: write `predictor.json` when the work directory has
     none (False when `workdir` holds the evaluation of a model trained elsewhere).
     """
-    if manifest and not (Path(workdir) / "predictor.json").exists():  # a run trained before `predictor.json` existed
+    if manifest and not (Path(workdir) / MANIFEST).exists():  # a run trained before `predictor.json` existed
         write_manifest(cfg, prep.dataset, workdir)
     return eval_loop.evaluate(cfg, get_method(cfg.method), prep, params, Path(workdir), data_label)
 
