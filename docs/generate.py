@@ -45,6 +45,7 @@ LONG_RUNS = [
     "long/divsamp_bandai_long_beta01_s0_metrics.json",
     "long/gsps_bandai_long_s0_metrics.json",
     "long/motionmap_bandai_long_s0_metrics.json",
+    "long/motionmap_bandai_dense_long_s0_metrics.json",
     "long/diffusion_bandai_long_s0_metrics.json",
 ]
 DIFFUSION_LONG = "long/diffusion_bandai_long_s0_metrics.json"
@@ -59,6 +60,13 @@ SYNTHETIC_B3 = sorted(p.relative_to(EXP).as_posix() for p in (EXP / "synthetic_b
 TARGET_PEAKS = "motionmap_target_peaks_bandai.json"  # experiments/motionmap_target_peaks.py
 MOTIONMAP_TABLES = "motionmap_tables_bandai_long.md"  # experiments/motionmap_tables.py
 MOTIONMAP_TABLES_DIFFUSION = "motionmap_tables_bandai_long_diffusion.md"  # the same protocols, the diffusion long run
+MOTIONMAP_TABLES_DENSE = "motionmap_tables_bandai_dense_long.md"  # the same protocols, the dense-map long run
+# MotionMap's long runs in those tables: (run label in the tables, predictor, what differs).
+MOTIONMAP_MAPS = (
+    ("long_motionmap_s0", "motionmap", "map of `motionmap_bandai_long.py` (2,000 t-SNE points, candidates every 15 frames), top-K peaks"),
+    ("long_motionmap_dense_s0", "motionmap", "dense map of `motionmap_bandai_dense_long.py` (every candidate, every 3 frames), top-K peaks"),
+    ("long_motionmap_dense_s0", "motionmap_all_peaks", "dense map, the release's K protocol (zero-velocity and every peak; ANP {anp})"),
+)
 C3D_FITS = ["c3d_squat_fit.json", "c3d_nick_freeform_fit.json"]
 PROJECTION_BENCH = "projection_bench_steps6.json"
 VALIDITY = "validity_bandai_shared_budget.json"  # experiments/validity_table.py
@@ -188,26 +196,33 @@ def claims() -> list[tuple[str, str, str, str]]:
                  f"ADE / FDE: diffusion {diff['ADE']:.4g} / {diff['FDE']:.4g}; "
                  + "; ".join(f"{n.split(' (')[0]} {m['ADE']:.4g} / {m['FDE']:.4g}" for n, m in cvaes), verdict))
     tables = _md_tables(EXP / MOTIONMAP_TABLES)
-    for title, rows_d in _md_tables(EXP / MOTIONMAP_TABLES_DIFFUSION).items():
-        if title in tables:
-            tables[title] = tables[title] + [r for r in rows_d if r["predictor"] != "zero_velocity"]
+    for extra in (MOTIONMAP_TABLES_DIFFUSION, MOTIONMAP_TABLES_DENSE):
+        for title, rows_d in _md_tables(EXP / extra).items():
+            if title in tables:
+                tables[title] = tables[title] + [r for r in rows_d if r["predictor"] != "zero_velocity"]
     for k, mm in ((7, "motionmap-train"), (5, "motionmap-test")):
         title = next(t for t in tables if t and t.startswith(f"K = {k}, MM ground truth `{mm}`"))
         learned = [r for r in tables[title] if r["predictor"] != "zero_velocity"]
-        best = {m: min(learned, key=lambda r: float(r[m]))["predictor"] for m in ("MMADE", "MMFDE")}
-        mmap = next(r for r in learned if r["predictor"] == "motionmap")
-        others = ", ".join(f"{r['predictor']} {r['MMADE']} / {r['MMFDE']}" for r in learned if r is not mmap)
-        ok = best["MMADE"] == best["MMFDE"] == "motionmap"
-        rows.append(("MotionMap has the best MMADE / MMFDE at small K (MotionMap)",
-                     f"K = {k}, MotionMap's MM ground truth `{mm}`, against the DivSamp and diffusion long runs",
-                     f"MMADE / MMFDE: motionmap {mmap['MMADE']} / {mmap['MMFDE']}; {others}",
-                     "**holds**" if ok else f"**does not hold**: best MMADE {best['MMADE']}, best MMFDE {best['MMFDE']}"))
-        diff = next(r for r in learned if r["predictor"] == "diffusion")
-        wins = [m for m in ("MMADE", "MMFDE") if float(mmap[m]) < float(diff[m])]
-        rows.append(("MotionMap is more accurate on the multimodal ground truth than a diffusion predictor at small K (MotionMap)",
-                     f"K = {k}, MotionMap's MM ground truth `{mm}`: MotionMap vs the diffusion long run",
-                     f"MMADE / MMFDE: motionmap {mmap['MMADE']} / {mmap['MMFDE']}; diffusion {diff['MMADE']} / {diff['MMFDE']}",
-                     "**holds**" if len(wins) == 2 else f"**holds for {wins[0]} only**" if wins else "**does not hold**"))
+        others = [r for r in learned if not r["predictor"].startswith("motionmap")]
+        listed = ", ".join(f"{r['predictor']} {r['MMADE']} / {r['MMFDE']}" for r in others)
+        diff = next(r for r in others if r["predictor"] == "diffusion")
+        for run, pred, what in MOTIONMAP_MAPS:
+            mmap = next(r for r in learned if r["predictor"] == pred and r["run"] == run)
+            what = what.format(anp=f"{float(mmap.get('distinct_futures', 'nan')) - 1:.2f}")
+            field = others + [mmap]
+            best = {m: min(field, key=lambda r: float(r[m]))["predictor"] for m in ("MMADE", "MMFDE")}
+            ok = best["MMADE"] == best["MMFDE"] == pred
+            rows.append(("MotionMap has the best MMADE / MMFDE at small K (MotionMap)",
+                         f"K = {k}, MotionMap's MM ground truth `{mm}`; MotionMap's {what} against the DivSamp and diffusion long runs",
+                         f"MMADE / MMFDE: {pred} {mmap['MMADE']} / {mmap['MMFDE']}; {listed}",
+                         "**holds**" if ok else
+                         next((f"**holds for {m} only**: best {o} {best[o]}" for m, o in (("MMADE", "MMFDE"), ("MMFDE", "MMADE"))
+                               if best[m] == pred), f"**does not hold**: best MMADE {best['MMADE']}, best MMFDE {best['MMFDE']}")))
+            wins = [m for m in ("MMADE", "MMFDE") if float(mmap[m]) < float(diff[m])]
+            rows.append(("MotionMap is more accurate on the multimodal ground truth than a diffusion predictor at small K (MotionMap)",
+                         f"K = {k}, MotionMap's MM ground truth `{mm}`: MotionMap's {what} vs the diffusion long run",
+                         f"MMADE / MMFDE: {pred} {mmap['MMADE']} / {mmap['MMFDE']}; diffusion {diff['MMADE']} / {diff['MMFDE']}",
+                         "**holds**" if len(wins) == 2 else f"**holds for {wins[0]} only**" if wins else "**does not hold**"))
     return rows
 
 
@@ -240,7 +255,7 @@ def methods_table() -> str:
         "MOJO": "Bandai-Namco-2, long budget, " + _headline(["long/mojo_bandai_long_s0_rerun_metrics.json"], "mojo", 50),
         "DivSamp": "Bandai-Namco-2, long budget (KL weight 0.1), " + _headline(["long/divsamp_bandai_long_beta01_s0_metrics.json"], "divsamp", 50),
         "GSPS": "Bandai-Namco-2, long budget, " + _headline(["long/gsps_bandai_long_s0_metrics.json"], "gsps", 50),
-        "MotionMap": "Bandai-Namco-2, long budget, " + _headline(["long/motionmap_bandai_long_s0_metrics.json"], "motionmap", 7, "train"),
+        "MotionMap": "Bandai-Namco-2, long budget, dense map, " + _headline(["long/motionmap_bandai_dense_long_s0_metrics.json"], "motionmap", 7, "train"),
         "diffusion": "Bandai-Namco-2, long budget, " + _headline([DIFFUSION_LONG], "diffusion", 50),
         "body fitting": f"`{Path(fit['file']).name}`, {fit['frames']} frames x {fit['markers']} markers: median residual "
                         f"{fit['median_mm']:.1f} mm, 95th percentile {fit['p95_mm']:.1f} mm",
@@ -377,7 +392,7 @@ def results_page() -> str:
         "| --- | --- | --- | --- |",
         *[f"| {c} | {w} | {m} | {v} |" for c, w, m, v in claims()],
         "",
-        "Sources: " + ", ".join(f"`{f}`" for f in LONG_RUNS) + f", `{MOTIONMAP_TABLES}`, `{MOTIONMAP_TABLES_DIFFUSION}` "
+        "Sources: " + ", ".join(f"`{f}`" for f in LONG_RUNS) + f", `{MOTIONMAP_TABLES}`, `{MOTIONMAP_TABLES_DIFFUSION}`, `{MOTIONMAP_TABLES_DENSE}` "
         "(`experiments/motionmap_tables.py`).",
         "",
         "## Bandai-Namco-2, long budget",

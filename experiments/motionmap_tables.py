@@ -40,7 +40,7 @@ PROTOCOLS = {  # name: (K, Config.mm_ground_truth)
 }
 PROTOCOL_MM = {"k7_protocol": (7, "test"), "k5_protocol": (5, "test")}
 COLUMNS = ("APD", "ADE", "FDE", "MMADE", "MMFDE")
-OPTIONAL = ("CMD", "FID")  # when the records have them (datasets with action labels)
+OPTIONAL = ("CMD", "FID", "distinct_futures")  # when every record has them (action labels; MotionMap runs: ANP + 1 for all peaks)
 
 
 def run_label(run: Path) -> str:

@@ -7,7 +7,7 @@
 # zero-velocity future and every peak; `distinct_futures` - 1 is its ANP).
 # Why: the ground-truth maps of motionmap_bandai.py's map have 3.19 peaks per test window (>= 5 in
 # 20.9%); this map's have 7.27 (>= 5 in 87.1%) (experiments/results/motionmap.md; experiments/motionmap_target_peaks.py).
-# Runtime and result: not measured yet.
+# Trained at the long budget only (motionmap_bandai_dense_long.py, where its runtime and result are).
 import dataclasses
 from pathlib import Path
 
