@@ -150,6 +150,18 @@ def test_a_checkpoint_with_flipped_array_bytes_is_unreadable_and_resume_falls_ba
     np.testing.assert_array_equal(np.asarray(resumed.params["w"]), reference)
 
 
+def test_a_checkpoint_whose_array_file_is_cut_short_is_refused_naming_its_step(big_stopped_at_10):
+    # TensorStore fails to read the array (no bytes to compare): the refusal still names the step.
+    from jaxmotion.errors import CheckpointError
+    from jaxmotion.train.loop import restore_untargeted
+
+    step_dir = big_stopped_at_10 / "ckpt" / "10"
+    f = max((p for p in step_dir.rglob("*") if p.is_file()), key=lambda p: p.stat().st_size)
+    f.write_bytes(f.read_bytes()[:16])
+    with pytest.raises(CheckpointError, match=r"ckpt: checkpoint step 10 is unreadable: "):
+        restore_untargeted(big_stopped_at_10 / "ckpt")
+
+
 def test_a_finished_stage_with_a_corrupted_last_checkpoint_is_trained_again_from_the_one_before(big_stopped_at_10, tmp_path):
     # The stage counts as finished (step 10 of 10); --resume still checks the checkpoint and falls back.
     from jaxmotion.errors import CheckpointError

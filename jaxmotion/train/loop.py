@@ -481,6 +481,7 @@ def restore_untargeted(ckpt: str | Path) -> tuple[int, Any]:
     """
     ckpt = Path(ckpt).absolute()
     mngr = ocp.CheckpointManager(ckpt)
+    step = None
     try:
         step = mngr.latest_step()
         if step is None:
@@ -493,7 +494,10 @@ def restore_untargeted(ckpt: str | Path) -> tuple[int, Any]:
     except CheckpointError:
         raise
     except Exception as e:
-        raise CheckpointError(f"{ckpt}: checkpoint does not restore ({type(e).__name__}: {str(e)[:200]})") from e
+        what = f"{type(e).__name__}: {str(e)[:200]}"
+        if step is None:
+            raise CheckpointError(f"{ckpt}: checkpoints do not list ({what})") from e
+        raise CheckpointError(f"{ckpt}: checkpoint step {step} is unreadable: {what}") from e
     finally:
         mngr.close()
 
