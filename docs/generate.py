@@ -177,7 +177,7 @@ def claims() -> list[tuple[str, str, str, str]]:
     more_diverse("DLow on the low DCT bands is more diverse than N(0, I) in every band (MOJO)", _mean(mojo, "mojo", 50),
                  _mean(mojo, "mojo_prior", 50), "MOJO", "MOJO's CVAE from N(0, I)")
     more_diverse("GSPS is more diverse than DLow at equal or better accuracy (GSPS)", _mean(gsps, "gsps", 50),
-                 _mean(dlow, "dlow", 50), f"GSPS (seed {_seeds(gsps)})", f"DLow (seeds {_seeds(dlow)}, mean)",
+                 _mean(dlow, "dlow", 50), f"GSPS with Human3.6M's diversity settings (seed {_seeds(gsps)})", f"DLow (seeds {_seeds(dlow)}, mean)",
                  ("ADE", "FDE", "MMADE"), EQUAL)
     diff, curve = _mean([DIFFUSION_LONG], "diffusion", 50), json.loads((EXP / DIFFUSION_LONG_CURVE).read_text())["curve"]
     cvaes = [(f"DLow (seeds {_seeds(dlow)}, mean)", _mean(dlow, "dlow", 50)),
@@ -254,7 +254,7 @@ def methods_table() -> str:
         "DLow": "Bandai-Namco-2, long budget, " + _headline(dlow, "dlow", 50),
         "MOJO": "Bandai-Namco-2, long budget, " + _headline(["long/mojo_bandai_long_s0_rerun_metrics.json"], "mojo", 50),
         "DivSamp": "Bandai-Namco-2, long budget (KL weight 0.1), " + _headline(["long/divsamp_bandai_long_beta01_s0_metrics.json"], "divsamp", 50),
-        "GSPS": "Bandai-Namco-2, long budget, " + _headline(["long/gsps_bandai_long_s0_metrics.json"], "gsps", 50),
+        "GSPS": "Bandai-Namco-2, long budget, Human3.6M's diversity settings, " + _headline(["long/gsps_bandai_long_s0_metrics.json"], "gsps", 50),
         "MotionMap": "Bandai-Namco-2, long budget, dense map, " + _headline(["long/motionmap_bandai_dense_long_s0_metrics.json"], "motionmap", 7, "train"),
         "diffusion": "Bandai-Namco-2, long budget, " + _headline([DIFFUSION_LONG], "diffusion", 50),
         "body fitting": f"`{Path(fit['file']).name}`, {fit['frames']} frames x {fit['markers']} markers: median residual "
