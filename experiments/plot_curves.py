@@ -73,9 +73,13 @@ def summary(curves: dict, tail: float) -> list[str]:
 
 def curve_record(run: Path, curves: dict, about: str = "") -> tuple[str, dict]:
     """Returns `(file name, {"run": ..., "curve": [...]})` for a run's curves, named by its config and seed."""
-    meta = json.loads((run / "predictor.json").read_text()) if (run / "predictor.json").exists() else {}
-    cfg = meta.get("config", {})
-    name, seed = cfg.get("name", run.name), cfg.get("seed")
+    from jaxmotion.tools.predictor import run_config  # only here: drawing curves needs no jax
+
+    try:
+        cfg = run_config(run)[0]
+        name, seed = cfg.name, cfg.seed
+    except FileNotFoundError:  # neither a manifest nor records: the folder's name
+        name, seed = run.name, None
     stem = f"{name}_s{seed}" if seed is not None else name
     desc = f"experiments/configs/{name}.py" + (f", seed {seed}" if seed is not None else "") + (f"; {about}" if about else "")
     points = [{"stage": stage, "step": step, "predictor": pred, **m}

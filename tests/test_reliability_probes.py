@@ -113,12 +113,17 @@ def _big_fit(workdir: Path, num_steps: int, resume: bool = False):
                seed=3, ckpt_every=5, log_every=5, resume=resume)  # fmt: skip
 
 
+def _largest_file(step_dir: Path) -> Path:
+    """Returns the checkpoint step's largest file: its array data."""
+    return max((p for p in step_dir.rglob("*") if p.is_file()), key=lambda p: p.stat().st_size)
+
+
 def _flip_64_bytes(step_dir: Path) -> None:
     """XORs 1 into 64 bytes in the middle of the checkpoint's largest file (array data).
 
     Orbax then usually restores other bytes without error; where the bytes land in a compressed
     chunk's framing, TensorStore fails to read the array instead. Either way the checkpoint must not load."""
-    f = max((p for p in step_dir.rglob("*") if p.is_file()), key=lambda p: p.stat().st_size)
+    f = _largest_file(step_dir)
     data = bytearray(f.read_bytes())
     i = len(data) // 2
     data[i : i + 64] = bytes(b ^ 1 for b in data[i : i + 64])
@@ -155,8 +160,7 @@ def test_a_checkpoint_whose_array_file_is_cut_short_is_refused_naming_its_step(b
     from jaxmotion.errors import CheckpointError
     from jaxmotion.train.loop import restore_untargeted
 
-    step_dir = big_stopped_at_10 / "ckpt" / "10"
-    f = max((p for p in step_dir.rglob("*") if p.is_file()), key=lambda p: p.stat().st_size)
+    f = _largest_file(big_stopped_at_10 / "ckpt" / "10")
     f.write_bytes(f.read_bytes()[:16])
     with pytest.raises(CheckpointError, match=r"ckpt: checkpoint step 10 is unreadable: "):
         restore_untargeted(big_stopped_at_10 / "ckpt")

@@ -494,10 +494,9 @@ def restore_untargeted(ckpt: str | Path) -> tuple[int, Any]:
     except CheckpointError:
         raise
     except Exception as e:
-        what = f"{type(e).__name__}: {str(e)[:200]}"
         if step is None:
-            raise CheckpointError(f"{ckpt}: checkpoints do not list ({what})") from e
-        raise CheckpointError(f"{ckpt}: checkpoint step {step} is unreadable: {what}") from e
+            raise CheckpointError(f"{ckpt}: checkpoints do not list ({_brief(e)})") from e
+        raise CheckpointError(f"{ckpt}: checkpoint step {step} is unreadable: {_brief(e)}") from e
     finally:
         mngr.close()
 
