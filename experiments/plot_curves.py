@@ -1,6 +1,7 @@
 """Learning curves of trained runs: APD, ADE, FDE and MMADE over training steps, one PNG per run.
 
     python experiments/plot_curves.py RUN_DIR [RUN_DIR ...] [--out-dir DIR] [--tail 0.2]
+    python experiments/plot_curves.py A_curve.json B_curve.json --overlay OUT.png   # kept curves, compared
 
 A run trained with `Config.curve_every > 0` has learning-curve lines (`"curve": true`) in each
 stage's `log.jsonl` (`jaxmotion.eval.learning_curve`). Per run this writes `curves.png`
@@ -8,10 +9,12 @@ stage's `log.jsonl` (`jaxmotion.eval.learning_curve`). Per run this writes `curv
 metric, one line per predictor, and prints, per stage and predictor, each metric's first, best and
 last value and its relative change over the last `--tail` of the stage's steps: the "flattened?"
 figure (a metric that still moves by several percent over the last fifth has not converged).
-Several runs of one config (seeds) are drawn into one figure with `--overlay OUT.png`.
-`--json-dir DIR` also writes each run's points as `DIR/<config name>_s<seed>_curve.json`
+Several runs (seeds of one config, or two settings) are drawn into one figure with `--overlay OUT.png`,
+one colour per run. `--json-dir DIR` also writes each run's points as `DIR/<config name>_s<seed>_curve.json`
 (`{"run": ..., "curve": [{stage, step, predictor, APD, ADE, ...}, ...]}`), the form kept beside a
 long run's `metrics.json` in `experiments/results/long/`; `--about TEXT` adds how the run was made.
+Such a file is read wherever a run folder is, so kept curves are drawn after their run folder is gone
+(points without a `predictor` are named by the file's first word, e.g. `gsps`).
 """
 
 from __future__ import annotations
@@ -22,11 +25,18 @@ import sys
 from pathlib import Path
 
 METRICS = ("APD", "ADE", "FDE", "MMADE")
+STYLES = ("-", "--", ":", "-.")
 
 
 def load_curves(run: Path) -> dict[str, dict[str, list[tuple[int, dict]]]]:
-    """Returns `{stage folder: {predictor: [(step, metrics), ...]}}` from a run's stage logs, in step order."""
+    """Returns `{stage folder: {predictor: [(step, metrics), ...]}}` from a run's stage logs (or from a
+    `*_curve.json` file that `--json-dir` wrote), in step order."""
     out: dict = {}
+    if run.is_file():
+        for p in json.loads(run.read_text())["curve"]:
+            m = {k: v for k, v in p.items() if k not in ("stage", "step", "predictor")}
+            out.setdefault(p["stage"], {}).setdefault(p.get("predictor", run.name.split("_")[0]), []).append((int(p["step"]), m))
+        return {stage: {k: sorted(v, key=lambda t: t[0]) for k, v in preds.items()} for stage, preds in out.items()}
     for log in sorted(run.glob("*/log.jsonl")):
         by_pred: dict = {}
         for line in log.read_text().splitlines():
@@ -98,14 +108,17 @@ def plot(runs: list[tuple[str, dict]], out: Path) -> None:
     fig, axes = plt.subplots(len(stages), len(METRICS), figsize=(4 * len(METRICS), 3 * len(stages)), squeeze=False)
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     preds = list(dict.fromkeys(p for _, c in runs for s in c.values() for p in s))
+    labels = [label for label, _ in runs]
     for r, stage in enumerate(stages):
         for c, m in enumerate(METRICS):
             ax = axes[r, c]
             for label, curves in runs:
                 for name, pts in curves.get(stage, {}).items():
+                    # One run: a colour per predictor. Several: a colour per run, a line style per predictor.
                     tag = name if len(runs) == 1 else f"{name} {label}"
-                    ax.plot([s for s, _ in pts], [p[m] for _, p in pts], marker=".", color=colors[preds.index(name) % len(colors)],
-                            alpha=1.0 if len(runs) == 1 else 0.7, label=tag)
+                    color = colors[(preds.index(name) if len(runs) == 1 else labels.index(label)) % len(colors)]
+                    ax.plot([s for s, _ in pts], [p[m] for _, p in pts], marker=".", color=color, label=tag,
+                            linestyle="-" if len(runs) == 1 else STYLES[preds.index(name) % len(STYLES)])
             # The untrained step-0 point would flatten the rest of the curve: the y-range is that of the later points.
             later = [p[m] for _, c in runs for pts in c.get(stage, {}).values() for s, p in pts if s > 0]
             if later:
@@ -126,24 +139,32 @@ def plot(runs: list[tuple[str, dict]], out: Path) -> None:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("runs", nargs="+", type=Path)
+    ap.add_argument("runs", nargs="+", type=Path, help="run folders or *_curve.json files")
     ap.add_argument("--out-dir", type=Path, default=None)
-    ap.add_argument("--overlay", type=Path, default=None, help="one figure of every run (seeds of one config)")
+    ap.add_argument("--overlay", type=Path, default=None, help="one figure of every run, a colour per run")
     ap.add_argument("--tail", type=float, default=0.2)
     ap.add_argument("--json-dir", type=Path, default=None, help="also write <config>_s<seed>_curve.json files here")
     ap.add_argument("--about", default="", help="how the runs were made, kept in the JSON files")
     args = ap.parse_args(argv)
     loaded, missing = [], []
     for run in args.runs:
-        curves = load_curves(run)
+        try:
+            curves = load_curves(run)
+        except (ValueError, KeyError, TypeError) as e:  # a file that is not a `--json-dir` curve file
+            print(f"{run}: not a learning-curve file ({type(e).__name__}: {e})", file=sys.stderr)
+            missing.append(str(run))
+            continue
         if not curves:
             missing.append(str(run))
             continue
-        loaded.append((run.name, curves))
-        out = (args.out_dir / f"{run.name}_curves.png") if args.out_dir else run / "curves.png"
-        plot([(run.name, curves)], out)
-        print(f"# {run}: {out}")
-        if args.json_dir:
+        name = run.name.removesuffix("_curve.json") if run.is_file() else run.name
+        loaded.append((name, curves))
+        # A kept curve file gets a figure of its own only with --out-dir (never one beside the file).
+        out = (args.out_dir / f"{name}_curves.png") if args.out_dir else None if run.is_file() else run / "curves.png"
+        if out is not None:
+            plot([(name, curves)], out)
+            print(f"# {run}: {out}")
+        if args.json_dir and not run.is_file():
             fname, rec = curve_record(run, curves, args.about)
             args.json_dir.mkdir(parents=True, exist_ok=True)
             (args.json_dir / fname).write_text(json.dumps(rec, indent=1) + "\n")

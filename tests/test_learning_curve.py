@@ -53,6 +53,16 @@ def test_curves_logged_per_stage_and_plotted(tmp_path, capsys):
     assert len(rec["curve"]) == sum(len(r["predictors"]) for r in cvae + q)
     last = [p for p in rec["curve"] if p["stage"] == "dlow_k5" and p["predictor"] == "dlow"][-1]
     assert last["step"] == 20 and last["ADE"] == q[-1]["predictors"]["dlow"]["ADE"]
+    # A kept curve file reads back as the run's own curves, and is drawn beside another run in one figure.
+    kept = tmp_path / "json" / f"{cfg.name}_s{cfg.seed}_curve.json"
+    assert mod.load_curves(kept) == mod.load_curves(tmp_path)
+    assert mod.main([str(kept), str(tmp_path), "--overlay", str(tmp_path / "both.png")]) == 0
+    assert (tmp_path / "both.png").stat().st_size > 10_000
+    assert not list((tmp_path / "json").glob("*.png"))  # nothing written beside a kept file
+    bad = tmp_path / "bad_curve.json"
+    bad.write_text('{"points": []}')
+    assert mod.main([str(bad)]) == 1
+    assert "bad_curve.json: not a learning-curve file (KeyError" in capsys.readouterr().err
 
 
 def test_a_motionmap_run_has_no_curve_point_before_its_heatmap_stage():
