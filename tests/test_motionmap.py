@@ -60,6 +60,37 @@ def test_motionmap_mm_sets_match_brute_force_and_include_self():
     assert all(i in set(np.asarray(r.idx)[i, np.asarray(r.mask)[i]]) for i in range(3))
 
 
+@pytest.mark.parametrize("band", [0.0, 1.0, None])
+def test_motionmap_mm_sets_decide_pairs_at_the_threshold_as_the_definition(monkeypatch, band):
+    # References placed at 1 -+ 1e-5 of the threshold from their query, after transfer: the float64 product
+    # alone (band 0), the float32 definition alone (band 1: every pair rechecked) and the default agree with
+    # the definition computed pair by pair.
+    if band is not None:
+        monkeypatch.setattr(metrics, "MM_BAND", band)
+    rng = np.random.default_rng(3)
+    desc = rng.normal(size=(12, 3, 48)).astype(np.float32) * 0.3
+    desc = np.asarray(mm.motion_transfer(jnp.asarray(desc), jnp.asarray(desc[:, -1:]), PARENTS))  # one skeleton each
+    thr = 0.2
+    refs, want = [], {i: set() for i in range(len(desc))}
+    for i in range(len(desc)):
+        for sign in (-1.0, 1.0):
+            step = 0.02 * rng.normal(size=desc[i].shape)
+            for _ in range(40):  # scale the step until the transferred distance sits at the wanted ratio
+                cand = (desc[i] + step).astype(np.float32)
+                moved = np.asarray(mm.motion_transfer(jnp.asarray(cand), jnp.asarray(desc[i, -1:]), PARENTS))
+                step = step * thr * (1 + sign * 1e-5) / np.linalg.norm(moved - desc[i])
+            refs.append(cand)
+    refs = np.stack(refs + list(rng.normal(size=(20, 3, 48)).astype(np.float32) * 0.3))
+    for i in range(len(desc)):
+        moved = np.asarray(mm.motion_transfer(jnp.asarray(refs), jnp.asarray(desc[i, -1:]), PARENTS))
+        d = np.linalg.norm((moved - desc[i]).reshape(len(refs), -1), axis=-1)
+        want[i] = set(np.nonzero(d < thr)[0])
+        assert {2 * i} <= want[i] and 2 * i + 1 not in want[i]  # the construction: one just inside, one just outside
+    sets = metrics.motionmap_mm_sets(desc, thr, PARENTS, reference_desc=refs, max_chunk_elems=100)
+    idx, mask = np.asarray(sets.idx), np.asarray(sets.mask)
+    assert all(set(idx[i, mask[i]]) == want[i] for i in range(len(desc)))
+
+
 def test_gaussian_heatmap_has_its_maxima_at_the_cells():
     cells = jnp.array([[5.0, 7.0], [20.0, 3.0], [12.0, 25.0], [0.0, 0.0]])
     mask = jnp.array([True, True, True, False])

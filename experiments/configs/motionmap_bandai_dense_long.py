@@ -3,8 +3,8 @@
 #
 # MotionMap's long budget (motionmap_bandai_long.py: autoencoder 20,000 x 64, heatmap 20,000 x 64,
 # finetune 10,000 x 64, curves every 1,000 steps at K = 7) on the dense map of motionmap_bandai_dense.py.
-# Runtime (seed 0, 2-core AMD EPYC): 89 min: the 33,243 candidates' multimodal sets 16 min (once; cached in
-# mm_cache_dir), t-SNE ~2 min, autoencoder 764 s, heatmap 2,830 s, finetune 239 s, evaluation ~3 min.
+# Runtime (seed 0, 2-core AMD EPYC): 89 min: the 33,243 candidates' multimodal sets 16 min (transferred pair
+# by pair; `motionmap_mm_sets` now gives the same sets in 28 s; cached in mm_cache_dir), t-SNE ~2 min, autoencoder 764 s, heatmap 2,830 s, finetune 239 s, evaluation ~3 min.
 # Result (all 1,609 windows, K = 7, MotionMap's MM sets over training windows): MMADE / MMFDE 0.2880 / 0.3315
 # (first map, motionmap_bandai_long.py: 0.3098 / 0.4255; DivSamp's long run 0.2902 / 0.3170); the release's
 # K protocol (all peaks) 0.2862 / 0.3184 with 4.08 peaks per window; ADE 0.289. Curves flat by the end.
