@@ -122,6 +122,15 @@ def test_api_reference_lists_every_module():
     assert len(listed) == len(set(listed))
 
 
+def test_experiments_readme_lists_every_script_and_only_existing_files():
+    text = (ROOT / "experiments" / "README.md").read_text()
+    listed = set(re.findall(r"^\| `([a-z_0-9]+\.py)` \|", text, re.M))
+    scripts = {p.name for p in (ROOT / "experiments").glob("*.py")}
+    configs = {p.name for p in (ROOT / "experiments" / "configs").glob("*.py")}
+    assert sorted(scripts - listed) == [], "experiments/README.md does not list these scripts"
+    assert sorted(listed - scripts - configs) == [], "experiments/README.md names files that do not exist"
+
+
 def _generator():
     spec = importlib.util.spec_from_file_location("docs_generate", DOCS / "generate.py")
     mod = importlib.util.module_from_spec(spec)
