@@ -39,6 +39,7 @@ from results_table import headline_records  # noqa: E402
 LONG_RUNS = [
     "long/dlow_bandai_long_s0_rerun_metrics.json",
     "long/dlow_bandai_long_s1_metrics.json",
+    "long/dlow_bandai_long_scaled_s0_metrics.json",
     "long/mojo_bandai_long_s0_rerun_metrics.json",
     "long/mojo_dct_bandai_long_s0_metrics.json",
     "long/divsamp_bandai_long_s0_metrics.json",
@@ -53,6 +54,10 @@ DIFFUSION_LONG = "long/diffusion_bandai_long_s0_metrics.json"
 DIFFUSION_LONG_CURVE = "long/diffusion_bandai_long_s0_curve.json"
 # HumanMAC's release (cfg/h36m.yml): 1,001 epochs of 50,000 sampled windows in batches of 64.
 HUMANMAC_RELEASE_STEPS = 1001 * (50_000 // 64)
+# DLow at the long budget: d_scale 100 (Human3.6M's), then d_scale from the data (`jaxmotion.diversity`).
+DLOW_LONG = ["long/dlow_bandai_long_s0_rerun_metrics.json", "long/dlow_bandai_long_s1_metrics.json"]
+DLOW_SCALED = ["long/dlow_bandai_long_scaled_s0_metrics.json"]
+DLOWS = ((DLOW_LONG, "Human3.6M's"), (DLOW_SCALED, "from the data"))
 # GSPS at the long budget: the Human3.6M diversity settings, then the settings chosen on the validation split.
 GSPS_LONG, GSPS_SCALED = "long/gsps_bandai_long_s0_metrics.json", "long/gsps_bandai_long_scaled_s0_metrics.json"
 GSPS_SCALED_CURVE = "long/gsps_bandai_long_scaled_s0_curve.json"
@@ -172,9 +177,17 @@ def _per_metric_verdict(won: list[str], metrics: tuple[str, ...], best: dict[str
     return f"**holds for {', '.join(won)} only**{why}" if won else f"**does not hold**{why}"
 
 
+def _d_scale(files: list[str]) -> str:
+    return f"d_scale {_records(files[0])[0]['config']['method_config']['q']['d_scale']:g}"
+
+
+def _dlow_name(files: list[str], what: str) -> str:
+    seeds = f"seed{'s' if len(files) > 1 else ''} {_seeds(files)}{', mean' if len(files) > 1 else ''}"
+    return f"DLow ({_d_scale(files)}, {what}; {seeds})"
+
+
 def claims() -> list[tuple[str, str, str, str]]:
     """Returns `(claim, compared, measured, verdict)` rows; the verdict is computed by the rule in the claim."""
-    dlow = ["long/dlow_bandai_long_s0_rerun_metrics.json", "long/dlow_bandai_long_s1_metrics.json"]
     mojo, mojo_dct = ["long/mojo_bandai_long_s0_rerun_metrics.json"], ["long/mojo_dct_bandai_long_s0_metrics.json"]
     ds05, ds01 = ["long/divsamp_bandai_long_s0_metrics.json"], ["long/divsamp_bandai_long_beta01_s0_metrics.json"]
     rows = []
@@ -190,43 +203,46 @@ def claims() -> list[tuple[str, str, str, str]]:
             verdict = f"does not hold: more diverse, but {', '.join(worse)} more than {tol:.0%} worse"
         rows.append((claim, f"{what_a} vs {what_b}", _cmp(a, b, ("APD", *acc)), f"**{verdict}**"))
 
-    more_diverse("DLow is more diverse than its CVAE sampled from N(0, I), at similar ADE (DLow)",
-                 _mean(dlow, "dlow", 50), _mean(dlow, "cvae", 50), f"DLow (seeds {_seeds(dlow)}, mean)", "its CVAE",
-                 ("ADE",), SIMILAR)
-    for files, beta in ((ds05, "0.5, the release's"), (ds01, "0.1")):
-        more_diverse("DivSamp is more diverse than DLow at equal or better ADE / FDE (DivSamp)", _mean(files, "divsamp", 50),
-                     _mean(dlow, "dlow", 50), f"DivSamp (KL weight {beta}; seed {_seeds(files)})",
-                     f"DLow (seeds {_seeds(dlow)}, mean)", ("ADE", "FDE"), EQUAL)
+    for dlow, what in DLOWS:
+        more_diverse("DLow is more diverse than its CVAE sampled from N(0, I), at similar ADE (DLow)",
+                     _mean(dlow, "dlow", 50), _mean(dlow, "cvae", 50), _dlow_name(dlow, what), "its CVAE", ("ADE",), SIMILAR)
+    # Each method's settings against the DLow of Human3.6M's d_scale; its best settings also against DLow's from the data.
+    for files, beta, dlows in ((ds05, "0.5, the release's", DLOWS[:1]), (ds01, "0.1", DLOWS)):
+        for dlow, what in dlows:
+            more_diverse("DivSamp is more diverse than DLow at equal or better ADE / FDE (DivSamp)", _mean(files, "divsamp", 50),
+                         _mean(dlow, "dlow", 50), f"DivSamp (KL weight {beta}; seed {_seeds(files)})",
+                         _dlow_name(dlow, what), ("ADE", "FDE"), EQUAL)
     more_diverse("MOJO's latent DCT is more diverse than a vector latent (MOJO)", _mean(mojo, "mojo", 50),
                  _mean(mojo_dct, "mojo", 50), f"MOJO (seed {_seeds(mojo)})", f"MOJO-DCT (seed {_seeds(mojo_dct)})")
     more_diverse("DLow on the low DCT bands is more diverse than N(0, I) in every band (MOJO)", _mean(mojo, "mojo", 50),
                  _mean(mojo, "mojo_prior", 50), "MOJO", "MOJO's CVAE from N(0, I)")
-    for files, what in (([GSPS_LONG], "Human3.6M's diversity settings (weights 8 / 25, alpha 100 / beta 300)"),
-                        ([GSPS_SCALED], "the diversity settings chosen on the validation split (weights 5 / 10, alpha 33.5 / beta 106.7)")):
-        more_diverse("GSPS is more diverse than DLow at equal or better accuracy (GSPS)", _mean(files, "gsps", 50),
-                     _mean(dlow, "dlow", 50), f"GSPS with {what} (seed {_seeds(files)})", f"DLow (seeds {_seeds(dlow)}, mean)",
-                     ("ADE", "FDE", "MMADE"), EQUAL)
-    if not rows[-1][3].startswith("**holds"):
-        steps, drop = _still_falling(GSPS_SCALED_CURVE)
-        mc = _records(GSPS_SCALED)[0]["config"]["method_config"]
-        rows[-1] = rows[-1][:3] + (rows[-1][3] + f"; trained {steps:,} generator steps, {steps / GSPS_RELEASE_STEPS:.0%} of the "
-                                   f"release's {GSPS_RELEASE_STEPS:,}, with {mc['nk1']} x {mc['nk2']} samples per window (release "
-                                   f"{GSPS_RELEASE_NK} x {GSPS_RELEASE_NK}); its ADE fell {drop:.1%} over the last 20% of "
-                                   f"them (`{GSPS_SCALED_CURVE}`)",)
+    steps, drop = _still_falling(GSPS_SCALED_CURVE)
+    mc = _records(GSPS_SCALED)[0]["config"]["method_config"]
+    budget = (f"; trained {steps:,} generator steps, {steps / GSPS_RELEASE_STEPS:.0%} of the release's {GSPS_RELEASE_STEPS:,}, "
+              f"with {mc['nk1']} x {mc['nk2']} samples per window (release {GSPS_RELEASE_NK} x {GSPS_RELEASE_NK}); its ADE fell "
+              f"{drop:.1%} over the last 20% of them (`{GSPS_SCALED_CURVE}`)")
+    for files, what, dlows in (([GSPS_LONG], "Human3.6M's diversity settings (weights 8 / 25, alpha 100 / beta 300)", DLOWS[:1]),
+                               ([GSPS_SCALED], "the diversity settings chosen on the validation split (weights 5 / 10, alpha 33.5 / beta 106.7)", DLOWS)):
+        for dlow, dwhat in dlows:
+            more_diverse("GSPS is more diverse than DLow at equal or better accuracy (GSPS)", _mean(files, "gsps", 50),
+                         _mean(dlow, "dlow", 50), f"GSPS with {what} (seed {_seeds(files)})", _dlow_name(dlow, dwhat),
+                         ("ADE", "FDE", "MMADE"), EQUAL)
+            if files == [GSPS_SCALED] and not rows[-1][3].startswith("**holds"):
+                rows[-1] = rows[-1][:3] + (rows[-1][3] + budget,)
     diff = _mean([DIFFUSION_LONG], "diffusion", 50)
-    cvaes = [(f"DLow (seeds {_seeds(dlow)}, mean)", _mean(dlow, "dlow", 50)),
-             (f"DivSamp (KL weight 0.1; seed {_seeds(ds01)})", _mean(ds01, "divsamp", 50)),
-             (f"MOJO (seed {_seeds(mojo)})", _mean(mojo, "mojo", 50))]
-    better = [name for name, m in cvaes if diff["ADE"] < m["ADE"] and diff["FDE"] < m["FDE"]]
+    cvaes = [(_dlow_name(dlow, what), f"DLow ({_d_scale(dlow)})", _mean(dlow, "dlow", 50)) for dlow, what in DLOWS]
+    cvaes += [(f"DivSamp (KL weight 0.1; seed {_seeds(ds01)})", "DivSamp", _mean(ds01, "divsamp", 50)),
+              (f"MOJO (seed {_seeds(mojo)})", "MOJO", _mean(mojo, "mojo", 50))]
+    better = [name for name, _, m in cvaes if diff["ADE"] < m["ADE"] and diff["FDE"] < m["FDE"]]
     steps, drop = _still_falling(DIFFUSION_LONG_CURVE)
     verdict = ("**holds**" if len(better) == len(cvaes) else
                f"**does not hold here**: more accurate than {len(better)} of {len(cvaes)}; trained {steps:,} steps, "
                f"{steps / HUMANMAC_RELEASE_STEPS:.0%} of the release's {HUMANMAC_RELEASE_STEPS:,}, and its ADE still fell "
                f"{drop:.1%} over the last 20% of them (`{DIFFUSION_LONG_CURVE}`)")
     rows.append(("The diffusion predictor is more accurate (ADE and FDE) than the CVAE-based samplers at K = 50 (HumanMAC)",
-                 f"diffusion (seed {_seeds([DIFFUSION_LONG])}) vs " + ", ".join(n for n, _ in cvaes),
+                 f"diffusion (seed {_seeds([DIFFUSION_LONG])}) vs " + ", ".join(n for n, _, _ in cvaes),
                  f"ADE / FDE: diffusion {diff['ADE']:.4g} / {diff['FDE']:.4g}; "
-                 + "; ".join(f"{n.split(' (')[0]} {m['ADE']:.4g} / {m['FDE']:.4g}" for n, m in cvaes), verdict))
+                 + "; ".join(f"{short} {m['ADE']:.4g} / {m['FDE']:.4g}" for _, short, m in cvaes), verdict))
     tables = _md_tables(EXP / MOTIONMAP_TABLES)
     for extra in (MOTIONMAP_TABLES_DIFFUSION, MOTIONMAP_TABLES_DENSE):
         for title, rows_d in _md_tables(EXP / extra).items():
@@ -277,10 +293,9 @@ def _headline(files: list[str], method: str, k: int, mm: str = "test", keys=("AP
 
 
 def methods_table() -> str:
-    dlow = ["long/dlow_bandai_long_s0_rerun_metrics.json", "long/dlow_bandai_long_s1_metrics.json"]
     fit = json.loads((EXP / C3D_FITS[0]).read_text())
     results = {
-        "DLow": "Bandai-Namco-2, long budget, " + _headline(dlow, "dlow", 50),
+        "DLow": "Bandai-Namco-2, long budget, d_scale from the data, " + _headline(DLOW_SCALED, "dlow", 50),
         "MOJO": "Bandai-Namco-2, long budget, " + _headline(["long/mojo_bandai_long_s0_rerun_metrics.json"], "mojo", 50),
         "DivSamp": "Bandai-Namco-2, long budget (KL weight 0.1), " + _headline(["long/divsamp_bandai_long_beta01_s0_metrics.json"], "divsamp", 50),
         "GSPS": "Bandai-Namco-2, long budget, diversity settings chosen on the validation split, " + _headline([GSPS_SCALED], "gsps", 50),
