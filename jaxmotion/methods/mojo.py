@@ -24,7 +24,7 @@ from jaxmotion.models.mojo import MojoConfig
 
 
 def stages(cfg, prep) -> list[Stage]:
-    """Returns MOJO's stages: the CVAE, then the per-band DLow maps for each K of `cfg.eval_k`."""
+    """Returns MOJO's stages: the CVAE, then the per-band DLow maps for each K of `cfg.eval_k` (none if `q_num_steps` is 0)."""
     ds, m = prep.dataset, METHOD.settings(cfg)
     model = mojo.cvae_model(m, ds.dim, ds.t_pred, execution_of(cfg))
     x, y = jnp.zeros((1, ds.t_his, ds.dim)), jnp.zeros((1, ds.t_pred, ds.dim))
@@ -39,7 +39,8 @@ def stages(cfg, prep) -> list[Stage]:
             num_steps=m.num_steps, init_seed=cfg.seed, data_seed=cfg.seed,
         )
     ]
-    for nk in cfg.eval_k:
+    # q_num_steps = 0: no Q stage, the CVAE alone (MOJO's "VAE+DCT" row, sampled as "mojo_prior").
+    for nk in cfg.eval_k if m.q_num_steps > 0 else ():
         q = mojo.q_model(m, ds.t_pred, nk, execution_of(cfg))
         q_loss = functools.partial(mojo.q_loss, q, model=model, t_his=ds.t_his, **mojo.q_loss_weights(m))
         out.append(

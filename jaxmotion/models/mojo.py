@@ -81,7 +81,7 @@ class MojoConfig:
     q_nh_mlp: tuple[int, ...] = (1024, 512)
     q_lr: float = 1e-4
     q_batch_size: int = 16
-    q_num_steps: int = 400
+    q_num_steps: int = 400  # 0: no Q stage (the CVAE alone, e.g. MOJO's VAE+DCT row)
     q_lr_fix_fraction: float = 0.2
     d_scale: float = 100.0
     lambda_j: float = 25.0
@@ -105,6 +105,10 @@ class MojoConfig:
             raise ValueError(
                 f"MojoConfig.baselines: unknown {sorted(unknown)}; known: zero_velocity, mojo_prior, mojo_proj"
             )
+        if self.q_num_steps < 0:
+            raise ValueError(f"MojoConfig.q_num_steps must be >= 0 (0: the CVAE alone), got {self.q_num_steps}")
+        if self.q_num_steps == 0 and "mojo_prior" not in self.baselines:
+            raise ValueError("MojoConfig.q_num_steps = 0 trains no Q network: add 'mojo_prior' to baselines to sample the CVAE")
         if self.proj_max_steps < 1:
             raise ValueError(f"MojoConfig.proj_max_steps must be >= 1, got {self.proj_max_steps}")
 
