@@ -58,7 +58,10 @@ def config_differences(recorded: dict, committed: dict) -> list[str]:
     return out
 
 
-@pytest.mark.parametrize("name", generate.LONG_RUNS)
+HUMANEVA_RUNS = sorted({f for *_, config, _ in generate.HUMANEVA_ROWS for f in generate.humaneva_runs(config)})
+
+
+@pytest.mark.parametrize("name", generate.LONG_RUNS + HUMANEVA_RUNS)
 def test_a_headline_run_was_made_with_its_committed_config(name):
     recs = json.loads((generate.EXP / name).read_text())
     recorded = recs[0]["config"]
