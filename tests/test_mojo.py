@@ -295,3 +295,28 @@ def test_mojo_method_trains_resumes_and_reports_realism(tmp_path):
     for a, b in zip(jax.tree.leaves(before), jax.tree.leaves(after)):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     assert logs == {s: (work / s / "log.jsonl").read_text() for s in ("cvae", "q_k4")}
+
+
+def test_q_num_steps_zero_trains_the_cvae_alone(tmp_path):
+    # MOJO's VAE+DCT row: no Q stage; the CVAE is sampled from N(0, I) in every band ("mojo_prior").
+    from jaxmotion import experiment
+    from jaxmotion.config import load_config
+
+    with pytest.raises(ValueError, match="mojo_prior"):
+        mojo.MojoConfig(q_num_steps=0, baselines=("zero_velocity",))
+    with pytest.raises(ValueError, match="q_num_steps"):
+        mojo.MojoConfig(q_num_steps=-1)
+    cfg = tmp_path / "tiny_vae_dct.py"
+    cfg.write_text(TINY.replace("q_num_steps=5", "q_num_steps=0").replace('("zero_velocity",)', '("mojo_prior",)'))
+    c = load_config(cfg)
+    prep = experiment.prepare(experiment.load_data(c), c.max_test_windows)
+    from jaxmotion.methods import mojo as mojo_method
+
+    assert [s.name for s in mojo_method.stages(c, prep)] == ["cvae"]
+    base = load_config(_write(tmp_path / "tiny.py", TINY))
+    assert [s.name for s in mojo_method.stages(base, prep)] == ["cvae", "q_k4"]
+
+
+def _write(path, text):
+    path.write_text(text)
+    return path
