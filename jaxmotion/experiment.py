@@ -116,7 +116,7 @@ def evaluate(
 
 
 def most_multimodal(prep: Prepared, n: int) -> np.ndarray:
-    """Returns the indices of the `n` test windows whose multimodal ground truth is most spread, most spread first.
+    """Returns the indices `(n,)` of the `n` test windows whose multimodal ground truth is most spread, most spread first.
 
     The spread of window i is the mean distance of its MM futures' end poses (PROTOCOL sec. 2 sets)
     from its own true end pose: where a good stochastic predictor should show several distinct futures.

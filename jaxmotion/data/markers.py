@@ -33,6 +33,8 @@ from jaxmotion.formats.bvh import read_bvh
 
 
 class MarkerClip(NamedTuple):
+    """One clip's virtual markers `(T, M, 3)` and joints `(T, J, 3)` in metres, with its style and content labels."""
+
     name: str
     style: str
     content: str

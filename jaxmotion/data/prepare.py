@@ -67,7 +67,7 @@ def check_lengths(
     ds: MotionDataset, train: list[np.ndarray], test: list[np.ndarray], train_sampler: str = "windows", test_only: bool = False
 ) -> None:
     """Raises `DataError` saying how many sequences there are, how long the longest is and what the protocol needs,
-    when no training window (unless `test_only`) or no test window fits (PROTOCOL sec. 3: test windows need T > t_total)."""
+    when no training window (unless `test_only`) or no test window fits in the `(T_i, d)` sequences (PROTOCOL sec. 3: test windows need T > t_total)."""
     if train_sampler not in SAMPLER_WEIGHTINGS:
         return  # TrainSampler names the choices
     need = ds.t_total + (1 if train_sampler == "sequences" else 0)

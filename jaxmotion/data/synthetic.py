@@ -168,12 +168,12 @@ def make_subject(name: str, rng: np.random.Generator) -> SubjectParams:
 
 
 def sample_actions(rng: np.random.Generator, n: int) -> np.ndarray:
-    """Returns `n` i.i.d. action indices drawn with probabilities `MODE_PROBS`."""
+    """Returns `(n,)` i.i.d. action indices drawn with probabilities `MODE_PROBS`."""
     return rng.choice(len(MODE_NAMES), size=n, p=np.asarray(MODE_PROBS)).astype(np.int64)
 
 
 def envelope(u: np.ndarray) -> np.ndarray:
-    """Returns the action envelope at segment phase `u = frame / SEGMENT_LEN` in [0, 1].
+    """Returns the action envelope at segment phase `u = frame / SEGMENT_LEN` in [0, 1], of `u`'s shape.
 
     0 with zero slope at both ends, half-cosine ramps of `RAMP_FRAMES` frames, 1 in between.
     """

@@ -117,7 +117,7 @@ SAMPLER_WEIGHTINGS = ("windows", "sequences")
 
 
 def sequence_frames(seqs: list[Sequence], root: int = 0) -> list[np.ndarray]:
-    """Returns the frame vectors of each sequence (see `to_frames`)."""
+    """Returns the frame vectors `(T_i, d)` of each sequence (see `to_frames`)."""
     return [to_frames(s.positions, root) for s in seqs]
 
 

@@ -146,7 +146,7 @@ def cmd(profiles: Float[ArrayLike, "n t1"], labels: ArrayLike, reference: Mappin
     """Returns CMD: the class-frequency-weighted sum of `class_cmd` (module docstring).
 
     `profiles[i]` is window i's displacement profile averaged over its K samples, `labels[i]` its
-    class, `reference[c]` the class's `Mbar_c` (`reference_displacement`).
+    class (`(n,)`), `reference[c]` the class's `Mbar_c` (`reference_displacement`).
     """
     profiles, labels = np.asarray(profiles, np.float64), np.asarray(labels)
     if profiles.ndim != 2 or labels.shape != profiles.shape[:1]:

@@ -69,7 +69,7 @@ def action_evaluator(cfg: Config, prep: Prepared) -> action_metrics.ActionEvalua
 
 
 def select_windows(prep: Prepared, sel: np.ndarray) -> Prepared:
-    """Returns `prep` with only the test windows `sel`."""
+    """Returns `prep` with only the test windows `sel` (indices `(n,)`)."""
     return dataclasses.replace(prep, windows=prep.windows[sel], seq_index=prep.seq_index[sel], starts=prep.starts[sel],
                                keep=prep.keep[sel])
 

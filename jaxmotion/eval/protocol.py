@@ -50,11 +50,11 @@ class Deviation:
     skips_windows: bool = False  # windows whose set is themselves alone are left out of every metric
 
     def used(self, mask: np.ndarray, idx: np.ndarray, is_self: np.ndarray, poses: ArrayLike | None) -> np.ndarray:
-        """Returns the members that enter the MM terms."""
+        """Returns the `(N, M)` mask of the members that enter the MM terms (`mask`, `idx`, `is_self`: `(N, M)`)."""
         return mask
 
     def averages(self, per: dict[str, np.ndarray], n_others: np.ndarray) -> dict[str, float]:
-        """Returns APD, ADE, FDE, ADE-m and FDE-m averaged over windows."""
+        """Returns APD, ADE, FDE, ADE-m and FDE-m averaged over windows (`per`: name -> `(N,)`; `n_others`: `(N,)`)."""
         return {k: float(np.mean(per[k], dtype=np.float64)) for k in METRIC_NAMES if not k.startswith("MM")}
 
     def reduce(self, per_window: np.ndarray, n_members: np.ndarray, n_others: np.ndarray) -> tuple[float, int]:
@@ -65,10 +65,14 @@ class Deviation:
 
 @dataclasses.dataclass(frozen=True)
 class DivSampRelease(Deviation):
+    """DivSamp's release: windows with no neighbour but themselves leave every metric's sum, not its count;
+    exact-duplicate start poses leave the MM sets."""
+
     name: str | None = "divsamp"
     needs_test_sets: bool = True
 
     def used(self, mask, idx, is_self, poses):
+        """Returns `mask` `(N, M)` without the members whose last pose equals the window's own (not itself)."""
         if poses is None:
             raise ValueError("mm_deviation='divsamp' needs the test windows' last poses (it drops exact duplicates)")
         poses = np.asarray(poses, np.float64)
@@ -76,27 +80,34 @@ class DivSampRelease(Deviation):
         return mask & ~dup
 
     def averages(self, per, n_others):
+        """Returns the averages with APD, ADE and FDE summed over windows with a neighbour, divided by all `N`."""
         out = super().averages(per, n_others)
         keep, n = n_others > 0, n_others.shape[0]
         out.update({k: float(np.sum(per[k][keep], dtype=np.float64) / n) for k in ("APD", "ADE", "FDE")})
         return out
 
     def reduce(self, per_window, n_members, n_others):
+        """Returns the sum over windows with a neighbour, divided by all `N`, and how many were summed."""
         keep = n_others > 0
         return float(per_window[keep].sum() / per_window.shape[0]), int(keep.sum())
 
 
 @dataclasses.dataclass(frozen=True)
 class CoMusionRelease(Deviation):
+    """CoMusion's release: MMADE / MMFDE averaged over the windows with a neighbour other than themselves."""
+
     name: str | None = "comusion"
 
     def reduce(self, per_window, n_members, n_others):
+        """Returns the mean over windows with a neighbour (NaN when none has one) and their number."""
         keep = n_others > 0
         return float(per_window[keep].mean()) if keep.any() else float("nan"), int(keep.sum())
 
 
 @dataclasses.dataclass(frozen=True)
 class GSPSRelease(Deviation):
+    """GSPS's evaluation: windows whose MM set is themselves alone are left out of every metric."""
+
     name: str | None = "gsps"
     needs_test_sets: bool = True
     skips_windows: bool = True
@@ -114,7 +125,7 @@ def deviation(name: str | None) -> Deviation:
 
 
 def multi_future_windows(last_poses: np.ndarray, thr: float) -> np.ndarray:
-    """Returns the indices of the windows whose test-window MM set holds another window (what `GSPS` keeps)."""
+    """Returns the indices `(n,)` of the windows (last poses `(N, d)`) whose test-window MM set holds another window (what `GSPS` keeps)."""
     sets = multimodal_gt(last_poses, thr)
     idx, mask = np.asarray(sets.idx), np.asarray(sets.mask)
     sel = np.flatnonzero((mask & (idx != np.arange(len(idx))[:, None])).any(axis=1))
@@ -125,7 +136,7 @@ def multi_future_windows(last_poses: np.ndarray, thr: float) -> np.ndarray:
 
 def window_sets(sets: MMSets, gt: np.ndarray, futures: ArrayLike | None, dev: Deviation = PROTOCOL,
                 poses: ArrayLike | None = None) -> WindowSets:
-    """Returns the `WindowSets` of `sets` over `futures` (None: the test windows' own futures `gt`) under `dev`.
+    """Returns the `WindowSets` of `sets` over `futures` `(R, t, d)` (None: the test windows' own futures `gt` `(N, t, d)`) under `dev`.
 
     `poses`: the windows' last observed poses, for the deviations that compare them (`DIVSAMP`).
     """
@@ -144,7 +155,7 @@ def window_sets(sets: MMSets, gt: np.ndarray, futures: ArrayLike | None, dev: De
 
 
 def averages(per: dict[str, np.ndarray], ws: WindowSets, dev: Deviation = PROTOCOL) -> dict[str, float]:
-    """Returns the window averages of `per` (`window_metrics`' arrays) and the MM set statistics, under `dev`.
+    """Returns the window averages of `per` (`window_metrics`' `(N,)` arrays) and the MM set statistics, under `dev`.
 
     Keys: `METRIC_NAMES`, `n_windows`; `MM_mean`, `MM_min`, `MM_max` (set sizes as built, i.e.
     including the window itself in test-window mode); `MM_only_self_frac` (fraction of windows with

@@ -235,7 +235,7 @@ def cosine_betas(noise_steps: int, s: float = 0.008) -> np.ndarray:
 
 
 def linear_betas(noise_steps: int, start: float = 1e-4, end: float = 0.02) -> np.ndarray:
-    """Returns DDPM's linear betas from `start` to `end`, scaled by 1000 / T as the release does."""
+    """Returns DDPM's linear betas `(noise_steps,)` from `start` to `end`, scaled by 1000 / T as the release does."""
     scale = 1000.0 / noise_steps
     return np.linspace(scale * start, scale * end, noise_steps)
 
@@ -367,6 +367,8 @@ def sample(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.A
 
 
 class EmaState(NamedTuple):
+    """The state of the parameters' exponential moving average: the number of updates so far."""
+
     count: jax.Array
 
 

@@ -329,9 +329,11 @@ class MotionMapAE(nn.Module):
         self.uncertainty_out = Dense((self.t_his + self.t_pred) * (self.dim // 3))
 
     def encode_x(self, x: Float[Array, "b t_his d"]) -> Float[Array, "b h"]:
+        """Returns the history encoder's last hidden state."""
         return self.enc_x(x, last_only=True)
 
     def encode_y(self, y: Float[Array, "b t_pred d"]) -> Float[Array, "b h"]:
+        """Returns the future encoder's last hidden state."""
         return self.enc_y(y, last_only=True)
 
     def decode(self, x: Float[Array, "b t_his d"], z_y: Float[Array, "b h"]):

@@ -118,7 +118,7 @@ def _checked(m: Motion, unique_names: bool = True) -> Motion:
 
 
 def match_joints(motion: Motion, joints: list[str], parents: list[int] | None = None, joint_map: dict[str, str] | None = None) -> np.ndarray:
-    """Returns the input joint index of each model joint (`joint_maps.match_skeleton`: a joint map, the names, or a built-in
+    """Returns the input joint index of each model joint, `(len(joints),)` (`joint_maps.match_skeleton`: a joint map, the names, or a built-in
     convention; the BVH's hierarchy checked against `parents`), or raises `DataError` saying what differs."""
     if motion.names is None:
         if motion.positions.shape[1] != len(joints):

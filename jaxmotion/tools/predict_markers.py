@@ -39,7 +39,7 @@ _LOWER = ("LHEE", "RHEE", "LHEL", "RHEL", "LTOE", "RTOE", "LANK", "RANK")
 
 
 def match_markers(path: Path, names: tuple[str, ...] | None, markers: list[str]) -> np.ndarray:
-    """Returns the input index of each model marker, or raises `DataError` listing the missing and extra markers."""
+    """Returns the input index of each model marker, `(len(markers),)`, or raises `DataError` listing the missing and extra markers."""
     if names is None:
         raise DataError(path, f"markers are matched by label: add 'names' to the npz (the model's: {markers})")
     clean = [n.split(":")[-1].strip() for n in names]
@@ -116,6 +116,8 @@ def _runs(frames: np.ndarray) -> str:
 
 
 class MarkerWindow(NamedTuple):
+    """The observed window of a marker clip in the model's canonical frame, its ground truth when the clip has it, and the way back."""
+
     x: np.ndarray  # (t_his, 3M) canonical frame of the window's first frame, the model's input
     gt: np.ndarray | None  # (t_pred, 3M) the frames after it, same frame, when the clip has them without gaps
     canon: np.ndarray  # (4, 3) rows R, then origin o: canonical q = R (p - o)

@@ -125,7 +125,7 @@ def window_views(
     mm: int = 4,
     keep_skeleton: bool = False,
 ) -> tuple[list[WindowView], int]:
-    """Returns the views of test windows `windows` (indices into `prep`) and the K their futures were drawn at.
+    """Returns the views of test windows `windows` (indices `(n,)` into `prep`) and the K their futures were drawn at.
 
     `keep_skeleton`: each future is put on its window's bone lengths (its last observed frame; every
     predicted bone keeps its direction, `metrics.motion_transfer`), as `jaxmotion predict` writes them.
