@@ -145,3 +145,22 @@ def test_the_check_finds_a_missing_docstring_and_missing_shapes(tmp_path):
                                           ("jaxmotion.eval", "eval.md"), ("jaxmotion.eval.metrics", "eval.md")])
 def test_page_of(module, page):
     assert page_of(module) == page
+
+
+def test_docstrings_cite_the_protocol_page_by_its_numbered_anchors():
+    """No text of the repository cites a section of a file outside it; a docstring's `[protocol §N][anchor]` names
+    a numbered heading of docs/pages/protocol.md, with its number."""
+    headings = dict(re.findall(r"^## (\d+)\. .* \{#([a-z-]+)\}$", (ROOT / "docs" / "pages" / "protocol.md").read_text(), re.M))
+    anchors = {a: n for n, a in headings.items()}
+    assert len(anchors) >= 6, "docs/pages/protocol.md: its sections are numbered with explicit anchors"
+    outside, wrong = [], []
+    for path in sorted([*ROOT.glob("jaxmotion/**/*.py"), *ROOT.glob("tests/*.py"), *ROOT.glob("experiments/**/*.py"),
+                        *ROOT.glob("benchmarks/**/*.py")]):
+        text = path.read_text()
+        rel = path.relative_to(ROOT)
+        outside += [f"{rel}: {m}" for m in re.findall(r"PROTOCOL(?:\.md)? secs?\.? ?\d|PROTOCOL\.md", text)]
+        for num, anchor in re.findall(r"\[protocol §(\d+)\]\[([^\]]+)\]", text):
+            if anchors.get(anchor) != num:
+                wrong.append(f"{rel}: [protocol §{num}][{anchor}]")
+    assert outside == [], "citations of a file outside the repository: link the protocol page's section instead"
+    assert wrong == [], f"links to a protocol section that does not exist or has another number; sections: {headings}"

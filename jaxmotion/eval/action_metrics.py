@@ -1,4 +1,4 @@
-"""Metrics that need action labels: BeLFusion's CMD and an FID over a project-trained action classifier (PROTOCOL sec. 2).
+"""Metrics that need action labels: BeLFusion's CMD and an FID over a project-trained action classifier ([protocol §3][realism-and-action-metrics]).
 
 CMD (cumulative motion distribution, BeLFusion Sec. 4 / `metrics/evaluation.py` `cmd`). For class c,
 `M_t` is the mean over the class's test windows, their K samples and the points of a frame of the

@@ -20,7 +20,7 @@ from jaxmotion.eval.metrics import WindowMetricStream, mode_recall
 
 
 class ProtocolMetrics:
-    """APD, ADE, FDE, MMADE, MMFDE, ADE-m, FDE-m and the MM set statistics (PROTOCOL sec. 2)."""
+    """APD, ADE, FDE, MMADE, MMFDE, ADE-m, FDE-m and the MM set statistics ([protocol §2][metrics])."""
 
     def __init__(self, gt: np.ndarray, truth: MMGroundTruth, deviation: Deviation, poses: np.ndarray | None = None):
         self.gt, self.truth, self.deviation = np.asarray(gt, np.float32), truth, deviation

@@ -1,6 +1,6 @@
 """The protocol's averages over windows, and each published code base's deviation from them, as values.
 
-PROTOCOL sec. 2 averages every metric over the test windows, MMADE / MMFDE over the windows with a
+[protocol §2][metrics] averages every metric over the test windows, MMADE / MMFDE over the windows with a
 non-empty multimodal set. Some published evaluation code averages differently; each such deviation
 is a `Deviation` value here (`DEVIATIONS`, chosen by `Config.mm_deviation`), off by default:
 
@@ -43,7 +43,7 @@ class WindowSets(NamedTuple):
 
 @dataclasses.dataclass(frozen=True)
 class Deviation:
-    """The protocol (PROTOCOL sec. 2). Subclasses reproduce published code; see the module docstring."""
+    """The protocol ([protocol §2][metrics]). Subclasses reproduce published code; see the module docstring."""
 
     name: str | None = None
     needs_test_sets: bool = False  # only defined on the test windows' own sets
@@ -183,7 +183,7 @@ def reduce_mm(
     n_others: Int[ArrayLike, " n"],
     mm_deviation: MMDeviation = None,
 ) -> tuple[float, int]:
-    """Returns `(average over windows, number of windows averaged)` of an MM metric (PROTOCOL sec. 2).
+    """Returns `(average over windows, number of windows averaged)` of an MM metric ([protocol §2][metrics]).
 
     `per_window` must have been computed on the sets the deviation prescribes, `n_members` is the
     size of those sets and `n_others` the number of members other than the window itself; see
@@ -206,7 +206,7 @@ def evaluate_windows(
     transfer_poses: Float[ArrayLike, "n d"] | None = None,
     transfer_parents: tuple[int, ...] | None = None,
 ) -> dict[str, float]:
-    """Returns APD, ADE, FDE, MMADE, MMFDE, ADE-m, FDE-m averaged over windows, plus MM statistics (PROTOCOL sec. 2).
+    """Returns APD, ADE, FDE, MMADE, MMFDE, ADE-m, FDE-m averaged over windows, plus MM statistics ([protocol §2][metrics]).
 
     `mm` is either the `(N, D)` flattened last observed poses (then `thr` is required and the MM
     sets are built with `multimodal_gt`) or precomputed `MMSets`. MM futures are the test ground

@@ -1,4 +1,4 @@
-"""Where MMADE / MMFDE's multimodal ground truth comes from (PROTOCOL sec. 2 and its options), as values.
+"""Where MMADE / MMFDE's multimodal ground truth comes from ([protocol §2][metrics] and its options), as values.
 
 A reference builds, for the test windows of a `Prepared`, an `MMGroundTruth`: the sets of
 futures each window is compared with, the futures those sets index, and (MotionMap's) the
@@ -27,7 +27,7 @@ from jaxmotion.data.prepare import Prepared
 from jaxmotion.data.windows import test_windows
 from jaxmotion.eval.metrics import MMSets, motionmap_mm_sets, multimodal_gt
 
-# MotionMap's descriptor: the last three observed frames (paper appendix A; PROTOCOL sec. 2 option).
+# MotionMap's descriptor: the last three observed frames (paper appendix A; protocol §2 (docs/pages/protocol.md#metrics) option).
 MOTIONMAP_DESCRIPTOR_FRAMES = 3
 
 
@@ -62,7 +62,7 @@ def _training_windows(prep: Prepared, name: str) -> np.ndarray:
 
 @dataclasses.dataclass(frozen=True)
 class TestWindows:
-    """The protocol's sets: test windows with a similar last observed pose (PROTOCOL sec. 2)."""
+    """The protocol's sets: test windows with a similar last observed pose ([protocol §2][metrics])."""
 
     name: str = "test"
 

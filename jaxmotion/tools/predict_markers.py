@@ -9,7 +9,7 @@ two seen samples are filled by linear interpolation, as mocap software's default
 a longer gap, or one at the clip's start or end, inside the observed window is an error naming the
 markers and input frames (without `--frame`, the latest window free of such gaps is used). Positions
 are in metres (C3D POINT:UNITS), resampled to the model's frame rate by linear interpolation. The
-observed window is put in MOJO's canonical frame of its first frame (PROTOCOL sec. 4), computed
+observed window is put in MOJO's canonical frame of its first frame ([protocol §5][marker-canonicalisation]), computed
 from the waist markers: X from the left to the right waist markers on the ground, Z the input's
 up axis (the axis from the feet to the head markers), origin the waist markers' centre moved by
 their mean attachment offset (`body.markersets.MARKER_SPECS`) onto the pelvis joint the training
@@ -86,7 +86,7 @@ def up_vector(points: np.ndarray, names: tuple[str, ...]) -> tuple[np.ndarray, s
 
 
 def canonical_frame(frame: np.ndarray, names: tuple[str, ...], up: np.ndarray, path: Path) -> np.ndarray:
-    """Returns `(4, 3)`: rows R (X hips left->right on the ground, Y = Z x X, Z up), then origin o (PROTOCOL sec. 4)."""
+    """Returns `(4, 3)`: rows R (X hips left->right on the ground, Y = Z x X, Z up), then origin o ([protocol §5][marker-canonicalisation])."""
     left = [names.index(n) for n in _LEFT_WAIST if n in names]
     right = [names.index(n) for n in _RIGHT_WAIST if n in names]
     if not left or not right:
