@@ -142,3 +142,45 @@ def test_the_site_builds_with_warnings_as_errors(tmp_path):
                         "-d", str(tmp_path / "site")], capture_output=True, text=True, timeout=300,
                        env=dict(os.environ, NO_MKDOCS_2_WARNING="1"))
     assert r.returncode == 0, r.stdout + r.stderr
+
+
+def _widths():
+    spec = importlib.util.spec_from_file_location("docs_check_widths", DOCS / "check_widths.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_results_and_benchmarks_show_figures_and_no_table_wider_than_the_page(tmp_path):
+    """In headless Chromium at 1280 px (skipped without one: `apt-get install chromium`), the Results and
+    Benchmarks pages each show at least three figures, and no table, collapsed blocks opened, is wider than the
+    page's text column; the screenshots land in the test's temporary folder."""
+    pytest.importorskip("mkdocs")
+    widths = _widths()
+    if widths.browser() is None:
+        pytest.skip("no Chromium on PATH (chromium, chromium-browser, google-chrome): table widths not measured")
+    site = tmp_path / "site"
+    r = subprocess.run([sys.executable, "-m", "mkdocs", "build", "-q", "-f", str(DOCS / "mkdocs.yml"), "-d", str(site)],
+                       capture_output=True, text=True, timeout=300, env=dict(os.environ, NO_MKDOCS_2_WARNING="1"))
+    assert r.returncode == 0, r.stdout + r.stderr
+    for page in ("results", "benchmarks"):
+        m = widths.measure(site, page, 1280, screenshot=tmp_path / f"{page}.png")
+        assert len(m["figures"]) >= 3, f"{page}: {m['figures']}"
+        assert all((site / page / f).exists() for f in m["figures"]), f"{page}: a figure file is missing"
+        assert m["tables"], f"{page}: no table measured"
+        assert widths.too_wide(m) == [], f"{page}: tables wider than the {m['limit']:.0f} px text column"
+
+
+def test_the_width_check_finds_a_table_wider_than_the_page(tmp_path):
+    """The measurement itself: a page with a 30-column table is reported too wide, a 3-column one is not."""
+    widths = _widths()
+    if widths.browser() is None:
+        pytest.skip("no Chromium on PATH: table widths not measured")
+    (tmp_path / "page").mkdir()
+    wide = "<tr>" + "".join(f"<td>column{i:02d}value</td>" for i in range(30)) + "</tr>"
+    narrow = "<tr><td>a</td><td>b</td><td>c</td></tr>"
+    (tmp_path / "page" / "index.html").write_text(
+        f'<html><body><div class="md-content__inner" style="width: 600px"><table>{narrow}</table>'
+        f'<details><summary>more</summary><table>{wide}</table></details></div></body></html>')
+    m = widths.measure(tmp_path, "page", 1280)
+    assert [t["index"] for t in widths.too_wide(m)] == [1]
