@@ -208,17 +208,37 @@ def evaluate_windows(
 ) -> dict[str, float]:
     """Returns APD, ADE, FDE, MMADE, MMFDE, ADE-m, FDE-m averaged over windows, plus MM statistics ([protocol §2][metrics]).
 
-    `mm` is either the `(N, D)` flattened last observed poses (then `thr` is required and the MM
-    sets are built with `multimodal_gt`) or precomputed `MMSets`. MM futures are the test ground
-    truth `gt` unless `reference_futures` is given (with `reference_last_poses` when `mm` is poses),
-    e.g. training windows for MotionMap comparisons. `pred` may be an iterable of window chunks;
-    see `metrics.window_metrics` (also for `transfer_poses` / `transfer_parents`: MotionMap's
-    motion-transferred MM futures, with `mm` then the `MMSets` of `motionmap_mm_sets`).
+        m = evaluate_windows(futures, gt, x[:, -1], thr=0.5)   # futures (N, K, t_pred, D), gt (N, t_pred, D)
+        m["ADE"], m["MMADE"]                                    # metres
 
-    `mm_deviation` reproduces published code (`DEVIATIONS`): "comusion" drops windows whose only
-    member is themselves from MMADE/MMFDE; "divsamp" (`mm` must be the last poses) drops exact
-    duplicate last poses from each set and skips windows with no other member, dividing by the
-    number of windows. The extra keys are `averages`'.
+    Args:
+        pred: the futures, `(N, K, t_pred, D)` metres, or an iterable of `(c, K, t_pred, D)` chunks in
+            window order (a generator keeps memory flat).
+        gt: each window's true future, `(N, t_pred, D)`.
+        mm: the windows' flattened last observed poses `(N, D)` (the multimodal sets are then built with
+            `multimodal_gt` at `thr`), or precomputed `MMSets`.
+        thr: the multimodal threshold in metres (the dataset's, [protocol §4][datasets]); required with poses.
+        reference_last_poses: `(R, D)` last observed poses of other windows (e.g. the training windows,
+            MotionMap's tables) to build the sets from; needs `reference_futures`.
+        reference_futures: `(R, t_pred, D)` futures of those windows: the multimodal ground truth instead of `gt`.
+        mm_deviation: `None` (the protocol), or a published code's deviation (`DEVIATIONS`): "comusion"
+            drops windows whose only member is themselves from MMADE / MMFDE; "divsamp" (`mm` must be the
+            poses) drops exact-duplicate last poses from each set and skips windows with no other member
+            while dividing by N (GSPS's, which skips windows, is `Config.mm_deviation` of a whole evaluation).
+        chunk_size: windows per jitted call.
+        transfer_poses: `(N, D)` poses whose bone lengths the multimodal futures are motion-transferred onto
+            (MotionMap's evaluation; `mm` is then the `MMSets` of `motionmap_mm_sets`).
+        transfer_parents: the skeleton's parent indices, with `transfer_poses`.
+
+    Returns:
+        `{name: float}`: "APD", "ADE", "FDE", "MMADE", "MMFDE", "ADE-m", "FDE-m" (metres; APD 0 when
+        K = 1); "n_windows"; the multimodal sets' sizes "MM_mean", "MM_min", "MM_max" (as built, the
+        window itself included with test-window sets); "MM_only_self_frac", the fraction of windows with
+        no multimodal future but their own; "MM_n_averaged", the windows that enter MMADE / MMFDE.
+
+    Raises:
+        ValueError: shapes disagree, an input holds NaN / inf, `thr` is missing with poses, or a
+            deviation is given inputs it cannot use.
     """
     fn = "evaluate_windows"
     gt = np.asarray(gt, np.float32)

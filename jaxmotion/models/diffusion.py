@@ -339,7 +339,19 @@ def sample(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.A
     """Returns K futures per window: DDIM with DCT completion (`ddim_sample`), vmapped over the K samples.
 
     Sample k draws its start `x_T` from `split(key_k)[0]` and its completion noise from `split(key_k)[1]`,
-    `key_k = split(key, k)[k]`. `complete_frames` (None: the observed `t_his` frames; 0: no completion).
+    `key_k = split(key, k)[k]`.
+
+    Args:
+        model: the denoiser. params: its trained variables.
+        x: observed frames `(b, t_his, D)`, metres, root-relative.
+        key: a `jax.random` key. k: the number of futures K.
+        t_pred: the number of future frames.
+        abar: the `(T,)` cumulative products of `1 - beta` of the training noise schedule.
+        sampling_steps: DDIM steps (fewer is faster and less accurate: the Results page plots it).
+        complete_frames: observed frames put back at every step (None: all `t_his`; 0: no completion).
+
+    Returns:
+        `(b, K, t_pred, D)` futures.
     """
     x = jnp.asarray(x)
     b, t_his, d = x.shape
