@@ -197,7 +197,8 @@ def sample_prior(model: GRUCVAE, params, x: Float[ArrayLike, "b t_his d"], key: 
     """Returns K futures with latents drawn i.i.d. from N(0, I): the plain CVAE sampler (DLow's "CVAE" row, MOJO's VAE+DCT).
 
     Args:
-        model: the CVAE (`DLowCVAE`, `MojoCVAE`, ...). params: its trained variables.
+        model: the CVAE (`DLowCVAE`, `MojoCVAE`, ...).
+        params: its trained variables.
         x: observed frames `(b, t_his, D)`, metres, root-relative.
         key: a `jax.random` key; one draw of `(b, K) + model.latent_shape` latents.
         k: the number of futures K.

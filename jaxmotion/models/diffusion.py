@@ -342,9 +342,11 @@ def sample(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.A
     `key_k = split(key, k)[k]`.
 
     Args:
-        model: the denoiser. params: its trained variables.
+        model: the denoiser.
+        params: its trained variables.
         x: observed frames `(b, t_his, D)`, metres, root-relative.
-        key: a `jax.random` key. k: the number of futures K.
+        key: a `jax.random` key.
+        k: the number of futures K.
         t_pred: the number of future frames.
         abar: the `(T,)` cumulative products of `1 - beta` of the training noise schedule.
         sampling_steps: DDIM steps (fewer is faster and less accurate: the Results page plots it).

@@ -265,9 +265,11 @@ def sample_prior(cvae: DivSampCVAE, variables, x: Float[ArrayLike, "b t_his d"],
     """Returns K futures `(b, K, t_pred, D)` with latents drawn i.i.d. from N(0, I): the plain CVAE baseline.
 
     Args:
-        cvae: DivSamp's GCN CVAE. variables: its trained variables (parameters and BatchNorm statistics).
+        cvae: DivSamp's GCN CVAE.
+        variables: its trained variables (parameters and BatchNorm statistics).
         x: observed frames `(b, t_his, D)`, metres, root-relative.
-        key: a `jax.random` key. k: the number of futures K.
+        key: a `jax.random` key.
+        k: the number of futures K.
         t_pred: the number of future frames.
     """
     cx = condition_nodes(x, t_pred, cvae.n_dct)
@@ -285,10 +287,13 @@ def sample_divsamp(
     one per window, `DivSampSampler`'s `shared_eps`).
 
     Args:
-        cvae: the trained GCN CVAE (frozen). cvae_variables: its variables.
-        sampler: the Gumbel-Softmax sampler; any K, not only the trained one. sampler_variables: its variables.
+        cvae: the trained GCN CVAE (frozen).
+        cvae_variables: its variables.
+        sampler: the Gumbel-Softmax sampler; any K, not only the trained one.
+        sampler_variables: its variables.
         x: observed frames `(b, t_his, D)`, metres, root-relative.
-        key: a `jax.random` key. k: the number of futures K.
+        key: a `jax.random` key.
+        k: the number of futures K.
         t_pred: the number of future frames.
     """
     cx = condition_nodes(x, t_pred, cvae.n_dct)

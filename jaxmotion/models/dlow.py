@@ -149,8 +149,10 @@ def sample_dlow(
     """Returns DLow's `nk` futures: one noise draw per window mapped to nk latents by Q (DLow Eq. (4)).
 
     Args:
-        cvae: the trained CVAE (frozen). cvae_params: its variables.
-        q: the Q network; its `nk` is K, fixed when it was trained. q_params: its variables.
+        cvae: the trained CVAE (frozen).
+        cvae_params: its variables.
+        q: the Q network; its `nk` is K, fixed when it was trained.
+        q_params: its variables.
         x: observed frames `(b, t_his, D)`, metres, root-relative.
         key: a `jax.random` key; one `(b, nz)` noise draw per window.
 

@@ -234,8 +234,10 @@ def sample_mojo(
     """Returns MOJO's nk futures: per-band DLow on the lowest L bands, N(0, I) on the rest (MOJO Sec. 3.3).
 
     Args:
-        model: the trained latent-DCT CVAE (frozen). params: its variables.
-        q: the per-band Q network (`nk` futures, `n_low` bands). q_params: its variables.
+        model: the trained latent-DCT CVAE (frozen).
+        params: its variables.
+        q: the per-band Q network (`nk` futures, `n_low` bands).
+        q_params: its variables.
         x: observed frames `(b, t_his, D)` (joints, or markers in the canonical frame).
         key: a `jax.random` key.
 

@@ -159,9 +159,11 @@ def predict_file(
             future (BVH input) and `samples.gif` (with `gif`).
         frame: the input frame the observed window ends at (default: the last frame whose whole future
             is in the clip, so that the GIF shows the ground truth; else the clip's last frame).
-        k: the number of futures (default: the model's). method: the predictor (default: the model's own).
-        seed: the `jax.random` seed of the futures. scale: metres per file unit (default: guessed from the
-            file). gif: also write the animation.
+        k: the number of futures (default: the model's).
+        method: the predictor (default: the model's own).
+        seed: the `jax.random` seed of the futures.
+        scale: metres per file unit (default: guessed from the file).
+        gif: also write the animation.
         joint_map: `{model joint: input joint}` for names that differ.
 
     Returns:
