@@ -473,7 +473,10 @@ def _last_stage(curve_file: str) -> list[dict]:
     return [p for p in pts if keep is None or p.get("predictor") == keep]
 
 
-def figure_files() -> dict[Path, str]:
+DEFAULT_JOB_GIF = "default_job_samples.gif"  # `jaxmotion run`'s samples.gif (experiments/results/dlow.md)
+
+
+def figure_files() -> dict[Path, str | bytes]:
     """Returns {SVG file: its text}: the plots of the Results and Benchmarks pages."""
     out = {
         "apd_ade.svg": figures.apd_ade(_k50(LONG_RUNS), "Bandai-Namco-2, long budget, K = 50 (seed 0; DLow d_scale 100: seeds 0, 1, mean)"),
@@ -507,7 +510,9 @@ def figure_files() -> dict[Path, str]:
         {"jaxmotion": tq["jax"]["curve"], "PyTorch eager": tq["torch"]["curve"]},
         f"DLow's CVAE on Bandai-Namco-2, the same batches, seed {tq['settings']['seed']} ({tq['machine']['cpu']})")
     out["speed_ratios.svg"] = figures.ratios(_speed_ratios(docs), f"Training steps and samplers ({docs[0]['machine']['cpu']})")
-    return {FIGURES / name: svg for name, svg in out.items()}
+    out = {FIGURES / name: svg for name, svg in out.items()}
+    out[FIGURES / DEFAULT_JOB_GIF] = (EXP / DEFAULT_JOB_GIF).read_bytes()  # the home page's picture, as the run drew it
+    return out
 
 
 def claims_by_claim(rows: list[tuple[str, str, str, str]]) -> list[str]:
@@ -845,8 +850,8 @@ def experiments_readme_text() -> str:
     return _splice(EXP_README, PEAKS_BEGIN, PEAKS_END, target_peaks_table())
 
 
-def render_all() -> dict[Path, str]:
-    """Returns {file: its generated text}."""
+def render_all() -> dict[Path, str | bytes]:
+    """Returns {file: its generated text (bytes for a picture copied as it is)}."""
     return {RESULTS_PAGE: results_page(), BENCH_PAGE: benchmarks_page(), README: readme_text(),
             EXP_README: experiments_readme_text(), **figure_files()}
 
@@ -857,11 +862,12 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     stale = []
     for path, text in render_all().items():
-        if path.exists() and path.read_text() == text:
+        binary = isinstance(text, bytes)
+        if path.exists() and (path.read_bytes() if binary else path.read_text()) == text:
             continue
         stale.append(path)
         if not args.check:
-            path.write_text(text)
+            path.write_bytes(text) if binary else path.write_text(text)
     for p in stale:
         print(f"{'out of date' if args.check else 'wrote'}: {p.relative_to(ROOT)}")
     return 1 if args.check and stale else 0
