@@ -32,8 +32,8 @@ _MOVED = {
 def load(run_dir: str | os.PathLike, stages: tuple[str, ...] | None = None) -> MotionPredictor:
     """Returns a trained model as a predictor: a run folder, an exported `.msgpack` file or a shipped model's name.
 
-        model = jaxmotion.load("bandai")                      # the shipped Bandai-Namco-2 model
-        futures = model.predict(x, k=10)                      # x (t_his, D) -> (10, t_pred, D), metres
+        model = jaxmotion.load("bandai")   # the shipped model
+        futures = model.predict(x, k=10)   # (t_his, D) -> (10, t_pred, D)
 
     Args:
         run_dir: a run folder written by `jaxmotion run` / `jaxmotion train` (its `predictor.json` and
@@ -44,8 +44,8 @@ def load(run_dir: str | os.PathLike, stages: tuple[str, ...] | None = None) -> M
 
     Returns:
         A `jaxmotion.tools.predictor.MotionPredictor`: `predict(x, k, key, method)` draws K futures of
-        `(t_his, D)` or `(b, t_his, D)` observed frames; `layout` says what the frames are (joints,
-        frame rate, `t_his`, `t_pred`), `methods` which predictors the run has.
+            `(t_his, D)` or `(b, t_his, D)` observed frames; `layout` says what the frames are (joints,
+            frame rate, `t_his`, `t_pred`), `methods` which predictors the run has.
 
     Raises:
         FileNotFoundError: `run_dir` is neither a folder, a file nor a shipped model's name.

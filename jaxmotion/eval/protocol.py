@@ -208,8 +208,8 @@ def evaluate_windows(
 ) -> dict[str, float]:
     """Returns APD, ADE, FDE, MMADE, MMFDE, ADE-m, FDE-m averaged over windows, plus MM statistics ([protocol §2][metrics]).
 
-        m = evaluate_windows(futures, gt, x[:, -1], thr=0.5)   # futures (N, K, t_pred, D), gt (N, t_pred, D)
-        m["ADE"], m["MMADE"]                                    # metres
+        m = evaluate_windows(futures, gt, x[:, -1], thr=0.5)
+        m["ADE"], m["MMADE"]   # metres
 
     Args:
         pred: the futures, `(N, K, t_pred, D)` metres, or an iterable of `(c, K, t_pred, D)` chunks in
@@ -232,9 +232,9 @@ def evaluate_windows(
 
     Returns:
         `{name: float}`: "APD", "ADE", "FDE", "MMADE", "MMFDE", "ADE-m", "FDE-m" (metres; APD 0 when
-        K = 1); "n_windows"; the multimodal sets' sizes "MM_mean", "MM_min", "MM_max" (as built, the
-        window itself included with test-window sets); "MM_only_self_frac", the fraction of windows with
-        no multimodal future but their own; "MM_n_averaged", the windows that enter MMADE / MMFDE.
+            K = 1); "n_windows"; the multimodal sets' sizes "MM_mean", "MM_min", "MM_max" (as built, the
+            window itself included with test-window sets); "MM_only_self_frac", the fraction of windows with
+            no multimodal future but their own; "MM_n_averaged", the windows that enter MMADE / MMFDE.
 
     Raises:
         ValueError: shapes disagree, an input holds NaN / inf, `thr` is missing with poses, or a
