@@ -672,6 +672,11 @@ def _ms(v: float) -> str:
     return f"{v:,.0f}" if v >= 100 else f"{v:.3g}"
 
 
+def _readable(text: str) -> str:
+    """Returns `text` with numbers in e-notation of 1,000 and more written out: 1.34e+03 -> 1,340."""
+    return re.sub(r"(?<![\w.])(\d+(?:\.\d+)?)e\+0?(\d+)\b", lambda m: f"{float(m.group(0)):,.0f}", text)
+
+
 def _speed_rows(docs: list[dict]):
     """Yields `(row of run 1, jaxmotion ms per run, PyTorch ms per run)` of the training steps and K = 50 samplers."""
     for row in docs[0]["rows"]:
@@ -804,7 +809,7 @@ def benchmarks_page() -> str:
             f"(each framework draws its own initial weights: step-0 errors {tq['jax']['curve'][0]['val']:.3f} and "
             f"{tq['torch']['curve'][0]['val']:.3f}), not in speed per step; the right panel shows the error step by step.",
             "", f"How measured: `{tq['command']}` ({m['cpu']}, {m['logical_cpus']} logical CPUs; seed {tq['settings']['seed']}).", ""]
-    return fit_tables("\n".join(out))
+    return fit_tables(_readable("\n".join(out)))
 
 
 # ---------------------------------------------------------------------------------------------
