@@ -433,8 +433,9 @@ def six_columns(md: str, titles: bool = True) -> list[str]:
         out += ["| method | " + " | ".join(HEADLINE) + " |", "|" + " --- |" * (1 + len(HEADLINE))]
         for r in rows:
             seeds = r[col["seeds"]]
-            who = f"{r[col['sampler']]} (`{r[cfg]}`, seed{'s' if ',' in seeds else ''} {seeds})"
-            out.append(f"| {who} | " + " | ".join(r[col[m]] for m in HEADLINE) + " |")
+            who = f"{r[col['sampler']]}<br><small>`{r[cfg]}`, seed{'s' if ',' in seeds else ''} {seeds}</small>"
+            out.append(f"| {who} | " + " | ".join(r[col[m]].replace(" +- ", "<br><small>± ") + ("</small>" if "+-" in r[col[m]] else "")
+                                                  for m in HEADLINE) + " |")
         out.append("")
     return out
 
@@ -556,15 +557,15 @@ def results_sections() -> list[list[str]]:
             "| claim (paper) | compared | measured | verdict |",
             "| --- | --- | --- | --- |",
             *[f"| {c} | {w} | {m} | {v} |" for c, w, m, v in rows],
+            "",
+            "Sources: " + ", ".join(f"`{f}`" for f in LONG_RUNS) + f", `{MOTIONMAP_TABLES}`, `{MOTIONMAP_TABLES_DIFFUSION}`, "
+            f"`{MOTIONMAP_TABLES_DENSE}` (`experiments/motionmap_tables.py`).",
         ]),
-        "Sources: " + ", ".join(f"`{f}`" for f in LONG_RUNS) + f", `{MOTIONMAP_TABLES}`, `{MOTIONMAP_TABLES_DIFFUSION}`, `{MOTIONMAP_TABLES_DENSE}` "
-        "(`experiments/motionmap_tables.py`).",
-        "",
     ]
     long_budget = [
         "## Bandai-Namco-2, long budget",
         "",
-        "Each method's own samplers, its CVAE sampled from N(0, I) beside it; mean +- sd where there are several seeds.",
+        "Each method's own samplers, its CVAE sampled from N(0, I) beside it; mean ± sd where there are several seeds.",
         "MotionMap's default multimodal ground truth comes from the training windows, so its rows are in tables of",
         "their own, labelled with it.",
         "",

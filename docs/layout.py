@@ -20,12 +20,16 @@ def _cells(line: str) -> list[str]:
 
 
 def _text_px(cell: str) -> float:
-    """Returns the narrowest width a cell can take: its longest unbreakable piece (a number with its +- sd stays whole)."""
-    if NUMERIC.match(cell.replace("+-", "").replace(" ", "")):
+    """Returns the narrowest width a cell can take: its longest unbreakable piece (a number with its +- sd stays
+    whole; a line break `<br>` ends a piece; code breaks where a long word may, after `_` and `/`)."""
+    if "<br>" in cell:
+        return max(_text_px(part) for part in cell.split("<br>"))
+    cell = re.sub(r"</?small>", "", cell)
+    if NUMERIC.match(cell.replace("+-", "").replace("±", "").replace(" ", "")):
         return len(cell) * CHAR_PX
     widest = 0.0
     for code in re.findall(r"`([^`]*)`", cell):
-        widest = max(widest, len(code) * CODE_PX)
+        widest = max(widest, max(len(piece) + 1 for piece in re.split(r"[_/]", code)) * CODE_PX)
     plain = re.sub(r"`[^`]*`", " ", re.sub(r"\[([^\]]*)\]\([^)]*\)", r"\1", cell))
     for word in plain.split():
         widest = max(widest, len(word) * CHAR_PX)
