@@ -28,7 +28,7 @@ INTERNAL = {
     "jaxmotion.formats.atomic": "whole-or-nothing file writes behind every file the library writes",
     "jaxmotion.train.run_lock": "the run folder's lock, taken by the runner",
     "jaxmotion.train.hugepages": "glibc huge-page settings, applied by the command line",
-    "jaxmotion.train.compile_time": "compile-time counting for the run report and benchmarks",
+    "jaxmotion.train.compile_time": "compile-time counting for the evaluation records and the benchmarks",
 }
 KEYS = {"key", "rng"}  # a jax.random key is an array whose shape nobody needs told
 SKIPPED_NAMES = {"setup"}  # Flax calls a module's `setup`; docs/mkdocs.yml filters it out too
