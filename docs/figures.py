@@ -123,6 +123,8 @@ def time_to_quality(curves: dict[str, list[dict]], title: str) -> str:
         axes[1].set_xlabel("training step")
         axes[0].set_ylabel("validation error (m)")
         axes[0].set_yscale("log")
+        for axis in (axes[0].yaxis.set_major_formatter, axes[0].yaxis.set_minor_formatter):
+            axis(matplotlib.ticker.FormatStrFormatter("%.2g"))
         axes[0].legend(fontsize=7.5)
         fig.suptitle(title, fontsize=9)
         fig.tight_layout()
