@@ -10,7 +10,7 @@ batches (jaxmotion's window sampler, numpy, one seed: the identical windows in t
 initialised by its own framework's rule (PyTorch's `nn.Linear` / `nn.GRU`, which jaxmotion's
 layers follow, nn/linear.py and nn/gru.py). Every `--every` steps each evaluates the **validation
 reconstruction**: the mean over frames of the per-frame error ||y_rec - y|| (metres, the ADE
-convention of PROTOCOL sec. 2) of the posterior-mean reconstruction (z = mu) of `--val-windows`
+convention of protocol §2 (docs/pages/protocol.md#metrics)) of the posterior-mean reconstruction (z = mu) of `--val-windows`
 evenly spaced test windows. That is a fixed yardstick of how well the CVAE has learnt, not its
 training objective, and nothing is tuned on it.
 

@@ -5,7 +5,7 @@
 
 Every RUN_DIR is a finished run (with `metrics.json`; its config from `predictor.run_config`) on the same data; each
 contributes its method's own sampler (`--samplers NAME ...` picks others, one per run, e.g. `cvae`).
-Windows: the `--windows` test windows whose multimodal ground truth (PROTOCOL sec. 2) is most
+Windows: the `--windows` test windows whose multimodal ground truth (protocol §2 (docs/pages/protocol.md#metrics)) is most
 spread (`experiment.most_multimodal`). One row per window; the first column overlays the end
 poses (frame +t_pred) of the window's multimodal ground-truth futures, the others the K end poses of
 each run, front view, the last observed pose in grey; each panel's title gives the sampler's APD

@@ -6,7 +6,7 @@ multimodal ground truth (MotionMap Tables 1-2) and K = 5 against test-window gro
 
 Every RUN_DIR is a trained run on the same data (config from `predictor.run_config`). Each is evaluated
 by `experiment.evaluate` with `Config.mm_ground_truth` set to "motionmap-train" at K = 7 and to
-"motionmap-test" at K = 5 (MotionMap's multimodal ground truth, PROTOCOL sec. 2 option: the last
+"motionmap-test" at K = 5 (MotionMap's multimodal ground truth, protocol §2 (docs/pages/protocol.md#metrics) option: the last
 three observed frames as descriptor, candidates and their futures motion-transferred onto the
 window's skeleton, the dataset's threshold) and `--protocol-mm` adds the protocol's own ("test": last
 pose, no transfer) at both K for comparison. Records go to `OUT/<parent>_<run name>/metrics_<protocol>.json`;

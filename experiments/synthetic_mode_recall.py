@@ -3,7 +3,7 @@
     flock /tmp/jaxmotion-heavy.lock python experiments/synthetic_mode_recall.py --out ~/jaxmotion-runs/synthetic_all \
         [--budget 3] [--seeds 0 1 2] [--methods dlow divsamp mojo gsps motionmap] [--markdown experiments/results/synthetic_mode_recall.md]
 
-The synthetic data knows every test window's true futures and their probabilities (PROTOCOL sec. 4,
+The synthetic data knows every test window's true futures and their probabilities (protocol §5 (docs/pages/protocol.md#marker-canonicalisation),
 `jaxmotion.data.synthetic`), so mode recall (a sample reaches the true mode it is nearest to) is
 exact there. Each method trains from its own synthetic config (`experiments/configs/<method>_synthetic.py`)
 with every training stage's step count multiplied by `--budget` (fields whose name holds "steps",

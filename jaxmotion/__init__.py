@@ -8,6 +8,14 @@ config's job: data -> train -> evaluate -> report), `tools/` (a trained run as a
 prediction from files, BVH out, the viewer) and `cli`.
 """
 
+from __future__ import annotations
+
+import os
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from jaxmotion.tools.predictor import MotionPredictor
+
 __version__ = "0.1.0"
 
 # Modules that moved into the layer folders: `jaxmotion.<old>` still resolves, with a DeprecationWarning.
@@ -21,10 +29,27 @@ _MOVED = {
 }
 
 
-def load(run_dir, stages=None):
-    """Returns the trained run at `run_dir` as a predictor (`jaxmotion.tools.predictor.MotionPredictor`): `predict(x, k, key)`, `methods`.
+def load(run_dir: str | os.PathLike, stages: tuple[str, ...] | None = None) -> MotionPredictor:
+    """Returns a trained model as a predictor: a run folder, an exported `.msgpack` file or a shipped model's name.
 
-    `stages` (names) restores only those stages (`jaxmotion.tools.predictor.load`).
+        model = jaxmotion.load("bandai")   # the shipped model
+        futures = model.predict(x, k=10)   # (t_his, D) -> (10, t_pred, D)
+
+    Args:
+        run_dir: a run folder written by `jaxmotion run` / `jaxmotion train` (its `predictor.json` and
+            checkpoints), a file written by `jaxmotion export` (`.msgpack`), or the name of a shipped model
+            (`"bandai"`; `jaxmotion.tools.predictor.PRETRAINED` lists them).
+        stages: names of the stages to restore, for a run folder only (e.g. a GSPS run's
+            `("prior", "angle_bounds")` before its generator is trained); `None` restores every stage.
+
+    Returns:
+        A `jaxmotion.tools.predictor.MotionPredictor`: `predict(x, k, key, method)` draws K futures of
+            `(t_his, D)` or `(b, t_his, D)` observed frames; `layout` says what the frames are (joints,
+            frame rate, `t_his`, `t_pred`), `methods` which predictors the run has.
+
+    Raises:
+        FileNotFoundError: `run_dir` is neither a folder, a file nor a shipped model's name.
+        jaxmotion.errors.CheckpointError: a requested stage has no checkpoint, or a file is not a model.
     """
     from jaxmotion.tools.predictor import load as _load  # imported on use: `import jaxmotion` stays light
 

@@ -61,7 +61,7 @@ class Config:
     # None (protocol), or the averaging of a published code base: "divsamp", "comusion" or "gsps"
     # (`jaxmotion.eval.protocol.DEVIATIONS`, each described there).
     mm_deviation: str | None = None
-    # Where MMADE / MMFDE's multimodal ground truth comes from (PROTOCOL sec. 2; `jaxmotion.eval.references`):
+    # Where MMADE / MMFDE's multimodal ground truth comes from (protocol §2 (docs/pages/protocol.md#metrics); `jaxmotion.eval.references`):
     # None: the method's own (`Method.reference_futures`: "test" for every method but MotionMap,
     # "train" for it); "test": the protocol (last observed pose within the dataset's threshold, test
     # windows); "train": the same over the training windows (every t_his frames); "motionmap-test" /
@@ -75,7 +75,7 @@ class Config:
     curve_every: int = 0
     curve_windows: int = 200
     curve_k: int = 50
-    # CMD and FID (`jaxmotion.eval.action_metrics`, PROTOCOL sec. 2) in every record's metrics when the
+    # CMD and FID (`jaxmotion.eval.action_metrics`, protocol §2 (docs/pages/protocol.md#metrics)) in every record's metrics when the
     # dataset has action labels (Bandai-Namco-2, the synthetic data); absent otherwise. FID's action
     # classifier is the project's own (not BeLFusion's Human3.6M one), trained once per dataset for
     # `action_classifier_steps` Adam steps and cached under `~/.cache/jaxmotion/action_classifiers/`.

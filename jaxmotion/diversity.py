@@ -10,7 +10,7 @@ body moves in a future window:
 
 The same value therefore means a different spread on every dataset. The releases tuned them by
 hand per dataset; their values relate to the motion through one statistic, the **future spread**
-`s`: the zero-velocity ADE of the windows (PROTOCOL sec. 2: the mean over future frames of the
+`s`: the zero-velocity ADE of the windows ([protocol §2][metrics]: the mean over future frames of the
 Euclidean norm, over the whole D-vector, of the frame minus the last observed frame). Per
 coordinate that is `sigma = s / sqrt(D)`, and each setting is the number of distances its term
 sums times the matching power of `sigma`:

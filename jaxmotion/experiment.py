@@ -2,7 +2,7 @@
 
 Every step is also callable from Python. A work directory holds one folder per training stage
 (`cvae/`, `dlow_k50/`, ... each with `ckpt/`, `log.jsonl` and `stage.json`), `metrics.json`
-(PROTOCOL sec. 5 records, one per (predictor, K)), `samples.png` and `samples.gif` (observed motion
+([protocol §6][reporting] records, one per (predictor, K)), `samples.png` and `samples.gif` (observed motion
 and K predicted futures, still and animated) and `predictor.json` (what `jaxmotion.load` needs to
 predict from the run alone). The method is looked up in the registry (`jaxmotion.method`) and its stages
 are run by the one stage runner (`jaxmotion.train.runner`).
@@ -105,7 +105,7 @@ def predictors(cfg: Config, ds: MotionDataset, params: dict, k: int) -> dict[str
 def evaluate(
     cfg: Config, prep: Prepared, params, workdir: Path, data_label: str | None = None, manifest: bool = True
 ) -> list[dict]:
-    """Returns and writes (`workdir/metrics.json`) one PROTOCOL sec. 5 record per (predictor, K) (`jaxmotion.eval.evaluate`).
+    """Returns and writes (`workdir/metrics.json`) one [protocol §6][reporting] record per (predictor, K) (`jaxmotion.eval.evaluate`).
 
     `cfg` is resolved (`resolve`). `manifest`: write `predictor.json` when the work directory has
     none (False when `workdir` holds the evaluation of a model trained elsewhere).
@@ -116,9 +116,9 @@ def evaluate(
 
 
 def most_multimodal(prep: Prepared, n: int) -> np.ndarray:
-    """Returns the indices of the `n` test windows whose multimodal ground truth is most spread, most spread first.
+    """Returns the indices `(n,)` of the `n` test windows whose multimodal ground truth is most spread, most spread first.
 
-    The spread of window i is the mean distance of its MM futures' end poses (PROTOCOL sec. 2 sets)
+    The spread of window i is the mean distance of its MM futures' end poses ([protocol §2][metrics] sets)
     from its own true end pose: where a good stochastic predictor should show several distinct futures.
     """
     idx, mask = multimodal_gt(prep.x[:, -1], prep.dataset.mm_threshold)
@@ -131,7 +131,7 @@ def most_multimodal(prep: Prepared, n: int) -> np.ndarray:
 def report(cfg: Config, prep: Prepared, params, workdir: Path, method: str | None = None) -> Path:
     """Writes `workdir/samples.png` and `samples.gif` (animated) for the test window whose ground truth is most multimodal.
 
-    That is the window whose multimodal ground-truth futures (PROTOCOL sec. 2) end furthest apart
+    That is the window whose multimodal ground-truth futures ([protocol §2][metrics]) end furthest apart
     on average: where a good stochastic predictor should show several distinct futures. A method
     with `Method.pictures` draws its own pictures of that window too; their paths are printed.
     """

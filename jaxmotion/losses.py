@@ -20,13 +20,9 @@ def kld_affine(a: Float[Array, "... z"], b: Float[Array, "... z"]) -> Float[Arra
     """Returns KL(N(b, diag(a^2)) || N(0, I)) summed over the last axis (DLow's Q-network KL).
 
     `log(a^2 + 1e-10)` where DLow's release takes `log(a^2)`: the Q network's `a` is a linear layer's
-    output and can cross zero, where the release's term is -inf and its gradient 2 / a unbounded. On
-    the synthetic data at 3x the default budget (`experiments/synthetic_mode_recall.py --budget 3`,
-    seed 0, 2026-12-04) DLow's K = 50 Q stage started at KL 429 nats with gradient norm 2e5 and its
-    loss was inf at step 3; with the floor the same stage trained (KL 40 at step 10, ~3 from step 300
-    on; a floor of 1e-8 did too). The floor changes the term by at most 1e-10 / a^2 per dimension
-    (1e-6 nats at |a| = 0.01, within the PyTorch parity test's 1e-4 at initialisation, where 1e-8 was
-    not), bounds each dimension's term by 11.5 nats and its gradient by 1e5, and keeps every value finite.
+    output and can cross zero, where the release's term is -inf and its gradient 2 / a unbounded. The
+    floor changes the term by at most 1e-10 / a^2 per dimension (1e-6 nats at |a| = 0.01), bounds each
+    dimension's term by 11.5 nats and its gradient by 1e5, and keeps every value finite.
     """
     var = a**2
     return -0.5 * jnp.sum(1.0 + jnp.log(var + 1e-10) - b**2 - var, axis=-1)

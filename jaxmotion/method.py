@@ -96,7 +96,7 @@ class Method:
       window `i` (`prep` an `experiment.Prepared`), written into `workdir` by `experiment.report`
       (`jaxmotion run`) beside `samples.png`, for the window it draws (MotionMap's maps and modes).
     - `reference_futures`: where the multimodal ground truth of MMADE/MMFDE comes from: "test"
-      (PROTOCOL sec. 2: the futures of test windows with a similar last observed pose) or "train"
+      ([protocol §2][metrics]: the futures of test windows with a similar last observed pose) or "train"
       (the futures of training windows, a pool of pseudo ground truth); "test" is the protocol.
     - `curve_skip`: predictor names left out of the learning curves (constant or slow ones).
     - `deterministic`: predictor names whose K futures are K copies of one (zero-velocity). Evaluation

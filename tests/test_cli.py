@@ -50,7 +50,7 @@ def test_run_writes_protocol_records_and_picture(run_dir):
     records = json.loads((work / "metrics.json").read_text())
     assert {(r["method"], r["K"]) for r in records} == {(m, k) for m in ("zero_velocity", "cvae", "dlow") for k in (6, 2)}
     for r in records:
-        # PROTOCOL sec. 5 fields.
+        # protocol §6 (docs/pages/protocol.md#reporting) fields.
         assert set(r) >= {"dataset", "method", "K", "n_windows", "metrics", "seed", "config", "jax_version", "device", "wall_s"}
         assert r["n_windows"] == 40
         assert set(r["metrics"]) >= {"APD", "ADE", "FDE", "MMADE", "MMFDE", "ADE-m", "FDE-m", "mode_recall"}

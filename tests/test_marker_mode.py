@@ -1,4 +1,4 @@
-"""Marker datasets through the pipeline: canonical windows (PROTOCOL sec. 4), marker bone deformation,
+"""Marker datasets through the pipeline: canonical windows (protocol §5 (docs/pages/protocol.md#marker-canonicalisation)), marker bone deformation,
 and MOJO with recursive projection as an evaluation sampler, on fabricated motion of the built-in body."""
 
 from __future__ import annotations
@@ -62,7 +62,7 @@ def test_canonical_windows_do_not_depend_on_where_and_which_way_the_motion_happe
     wa = pa.sampler.sample(np.random.default_rng(3), 8)
     wb = pb.sampler.sample(np.random.default_rng(3), 8)
     np.testing.assert_allclose(wa, wb, atol=2e-5)
-    # Canonical frame (PROTOCOL sec. 4): origin at the first frame's root, Z up, left hip -> right hip along +X.
+    # Canonical frame (protocol §5 (docs/pages/protocol.md#marker-canonicalisation)): origin at the first frame's root, Z up, left hip -> right hip along +X.
     mk, jt = motion(1, 12, yaw=0.4)
     x = canonicalise(mk, jt, BODY.names).reshape(12, -1)
     np.testing.assert_allclose(canonicalise_windows(mk.reshape(1, 12, -1), canonical_frames(jt, BODY.names)[:1])[0], x, atol=1e-5)

@@ -1,4 +1,4 @@
-"""Tests of jaxmotion.eval.metrics against hand-computed values, properties and a loop reference (PROTOCOL sec. 2)."""
+"""Tests of jaxmotion.eval.metrics against hand-computed values, properties and a loop reference (protocol §2 (docs/pages/protocol.md#metrics))."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The matrix-product forms of APD and MMADE / MMFDE (jaxmotion.eval.metrics) against their definitions (PROTOCOL sec. 2).
+"""The matrix-product forms of APD and MMADE / MMFDE (jaxmotion.eval.metrics) against their definitions (protocol §2 (docs/pages/protocol.md#metrics)).
 
 APD and the multimodal terms are computed from `|a|^2 + |b|^2 - 2 a.b` (one product per window or
 per block of set members) rather than from explicit differences; these tests compare them with

@@ -1,4 +1,4 @@
-"""MMADE / MMFDE's ground truth from four sources (`Config.mm_ground_truth`, PROTOCOL sec. 2 and its MotionMap option).
+"""MMADE / MMFDE's ground truth from four sources (`Config.mm_ground_truth`, protocol §2 (docs/pages/protocol.md#metrics) and its MotionMap option).
 
 The MotionMap sources motion-transfer each member's future onto the window's skeleton before the
 min-over-K terms; here that is checked against the same terms computed from explicitly transferred

@@ -72,7 +72,7 @@ def test_c3d_window_is_the_training_canonical_window(tmp_path, walk, z_up):
     path = write(tmp_path / "walk.c3d", mk, z_up=z_up, gaps=[(slice(40, 43), 3)])  # a 3-frame gap: filled
     w = marker_window(read_motion(path), lay(), frame=60)
     assert w.end == 30 and w.x.shape == (T_HIS, 3 * BODY.num_markers)
-    # The frames training builds from the body's joints (PROTOCOL sec. 4), at the model's 30 fps.
+    # The frames training builds from the body's joints (protocol §5 (docs/pages/protocol.md#marker-canonicalisation)), at the model's 30 fps.
     ref = canonicalise(mk[w.end + 1 - T_HIS : w.end + 1 + T_PRED], jt[w.end + 1 - T_HIS : w.end + 1 + T_PRED], BODY.names)
     np.testing.assert_allclose(w.x, ref[:T_HIS].reshape(T_HIS, -1), atol=1e-4)
     np.testing.assert_allclose(w.gt, ref[T_HIS:].reshape(T_PRED, -1), atol=1e-4)

@@ -82,7 +82,7 @@ def test_true_future_is_exactly_the_chosen_mode(ds, modes, test_wins):
 
 
 def test_mm_futures_are_modes_of_the_window(ds, modes, test_wins):
-    # At the documented threshold, multimodal ground truth (PROTOCOL sec. 2) is exact: every
+    # At the documented threshold, multimodal ground truth (protocol §2 (docs/pages/protocol.md#metrics)) is exact: every
     # MM neighbour's future is one of the window's own known modes.
     w = test_wins[0]
     last, future = w[:, ds.t_his - 1], w[:, ds.t_his :]

@@ -1,7 +1,7 @@
 # flock /tmp/jaxmotion-heavy.lock jaxmotion run --config experiments/configs/diffusion_bandai.py --data ../shared/data/bandai-namco-2 --workdir ~/jaxmotion-runs/diffusion_bandai_s0 --seed 0
 # python experiments/diffusion_steps.py ~/jaxmotion-runs/diffusion_bandai_s0   (the accuracy-vs-sampling-steps curve)
 #
-# The DCT-space diffusion predictor (HumanMAC class) on Bandai-Namco-2 under PROTOCOL sec. 3 (D = 60,
+# The DCT-space diffusion predictor (HumanMAC class) on Bandai-Namco-2 under protocol §4 (docs/pages/protocol.md#datasets) (D = 60,
 # 15 -> 60 frames at 30 fps, 1,609 test windows), sized for a 2-core CPU: 15 DCT coefficients of the
 # 75-frame window, a 4-block transformer of width 64 (291,580 weights; the release: 8 blocks of 512),
 # 6,000 Adam steps x 64 windows (lr 3e-4, constant for half, then linear to 0), EMA 0.995 after 500

@@ -9,7 +9,7 @@
 # ~/body_models/smplh) holds male/model.npz, female/model.npz, neutral/model.npz.
 # Not run here (neither data nor model is available): no runtime or result has been measured.
 # The first run computes the joints of every sequence once (cached in ~/.cache/jaxmotion/amass).
-"""DLow on AMASS under BeLFusion's protocol (PROTOCOL sec. 3): the 22 SMPL-H body joints of the
+"""DLow on AMASS under BeLFusion's protocol (protocol §4 (docs/pages/protocol.md#datasets)): the 22 SMPL-H body joints of the
 gendered models, 60 fps (every round(mocap_framerate / 60)-th frame), 30 -> 120 frames, pelvis
 dropped (D = 63), MM threshold 0.4; training on BeLFusion's 11 training sub-datasets (add
 `"include_validation": True` to `data_options` to train on its 4 validation ones too, as its

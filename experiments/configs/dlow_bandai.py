@@ -1,6 +1,6 @@
 # jaxmotion run --config experiments/configs/dlow_bandai.py --data ../shared/data/bandai-namco-2 --workdir runs/dlow_bandai
 #
-# DLow (CVAE + Q network, K = 50) on Bandai-Namco-2 under PROTOCOL sec. 3: 30 fps, 15 -> 60 frames,
+# DLow (CVAE + Q network, K = 50) on Bandai-Namco-2 under protocol §4 (docs/pages/protocol.md#datasets): 30 fps, 15 -> 60 frames,
 # 20 joints relative to Hips (D = 60), train styles active/exhausted/feminine/masculine (1,722
 # sequences, 99,746 train windows), test style normal (465 sequences, 1,609 windows, stride 15).
 # MM ground truth at threshold 0.5: 177.1 futures per window on average (min 5, max 282; no window
@@ -52,7 +52,7 @@
 # With flax's initialisation (before the references' initialisation) the same config gave APD 2.225, ADE 0.3523 (seed 0).
 #
 # Training-window sampler (Config.train_sampler), seed 0: "windows" (every window equally likely,
-# PROTOCOL sec. 3) DLow ADE 0.3336 MMADE 0.3621; "sequences" (the release: a sequence uniformly,
+# protocol §4 (docs/pages/protocol.md#datasets)) DLow ADE 0.3336 MMADE 0.3621; "sequences" (the release: a sequence uniformly,
 # then a start) 0.3329 / 0.3603. The difference is 20x smaller than the seed sd, so the default
 # stays "windows", which also uses sequences of exactly t_total frames.
 #

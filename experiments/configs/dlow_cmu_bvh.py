@@ -8,7 +8,7 @@
 # A small budget: this shows the pipeline on a user's own clips, it is not a benchmark (one training
 # trial of 23 s is far too little data for a stochastic model).
 # Runtime: 37 s on the 2-core CPU (data 0.4 s, CVAE 300 steps x 32, Q 100 steps x 16, eval, report).
-# Measured (seed 0, K = 10, 71 windows), metres (norm over the whole D = 90 vector, PROTOCOL sec. 2):
+# Measured (seed 0, K = 10, 71 windows), metres (norm over the whole D = 90 vector, protocol §2 (docs/pages/protocol.md#metrics)):
 #   method          APD     ADE     FDE     MMADE   MMFDE
 #   zero-velocity   0.000   1.2061  1.6766  1.2188  1.6897
 #   CVAE, N(0, I)   9.006   1.6678  1.7345  1.6696  1.7346

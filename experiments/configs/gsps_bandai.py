@@ -1,6 +1,6 @@
 # flock /tmp/jaxmotion-heavy.lock jaxmotion run --config experiments/configs/gsps_bandai.py --data ../shared/data/bandai-namco-2 --workdir ~/jaxmotion-runs/gsps_bandai
 #
-# GSPS on Bandai-Namco-2 under PROTOCOL sec. 3 (30 fps, 15 -> 60 frames, 20 joints relative to
+# GSPS on Bandai-Namco-2 under protocol §4 (docs/pages/protocol.md#datasets) (30 fps, 15 -> 60 frames, 20 joints relative to
 # Hips, D = 60; train styles active/exhausted/feminine/masculine, test style normal, 1,609 windows).
 # Budget: the shared Bandai budget of dlow_bandai.py (first stage 2000 steps x 64 windows, second
 # stage 400 x 16) does not map one to one onto GSPS, whose prior trains on single frames and whose

@@ -9,7 +9,7 @@
 # github.com/yz-cnsdqz/MOJO-release, at $JAXMOTION_MOJO_MARKERS (default ~/body_models/CMU.json).
 # Not run here (neither data nor models are available): no runtime or result has been measured.
 # The first run computes the markers of every sequence once (cached in ~/.cache/jaxmotion/amass).
-"""MOJO on AMASS body-surface markers under MOJO's protocol (PROTOCOL sec. 3-4): the CMU-41 markers
+"""MOJO on AMASS body-surface markers under MOJO's protocol (protocol §4 (docs/pages/protocol.md#datasets), protocol §5 (docs/pages/protocol.md#marker-canonicalisation)): the CMU-41 markers
 of SMPL-X driven by each file's root and body pose and betas[:10], 15 fps (every 8th frame at 120
 fps), 15 -> 45 frames, each window in the canonical frame of its first frame (D = 123), MM
 threshold 0.5; train CMU, HDM05 / test ACCAD and BMLhandball together (MOJO reports them apart:

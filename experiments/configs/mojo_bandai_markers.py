@@ -11,7 +11,7 @@
 # APD 26.9 -> 20.0, ADE 0.600 -> 0.665 (experiments/results/body.md).
 """MOJO on Bandai-Namco-2 as body-surface markers: the Bandai skeleton body carrying the `bandai`
 (CMU-41) markers, driven by every clip (`jaxmotion.data.markers.load_bandai_markers`); global
-marker positions in the canonical frame of each window's first frame (PROTOCOL sec. 4), D = 123.
+marker positions in the canonical frame of each window's first frame (protocol §5 (docs/pages/protocol.md#marker-canonicalisation)), D = 123.
 Same split, rate and window lengths as `mojo_bandai.py` (15 -> 60 frames at 30 fps) and the same
 model and budget. Recursive projection (`mojo_proj`) is evaluated by `experiments/mojo_projection_table.py`
 on a subset of windows: it fits the body 60 times per sample and window.

@@ -1,6 +1,6 @@
 # flock /tmp/jaxmotion-heavy.lock jaxmotion run --config experiments/configs/motionmap_bandai.py --data ../shared/data/bandai-namco-2 --workdir ~/jaxmotion-runs/motionmap_bandai
 #
-# MotionMap on Bandai-Namco-2 under PROTOCOL sec. 3 (30 fps, 15 -> 60 frames, 20 joints relative to
+# MotionMap on Bandai-Namco-2 under protocol §4 (docs/pages/protocol.md#datasets) (30 fps, 15 -> 60 frames, 20 joints relative to
 # Hips, train styles active/exhausted/feminine/masculine, test style normal), K = 7 with the
 # multimodal ground truth of evaluation drawn from the training windows (MotionMap Tables 1-2;
 # `Method.reference_futures = "train"`) and K = 5.

@@ -1,4 +1,4 @@
-"""The skeleton's bones of root-relative, root-dropped frame vectors (PROTOCOL sec. 1), and motion transfer.
+"""The skeleton's bones of root-relative, root-dropped frame vectors ([protocol §1][representation]), and motion transfer.
 
 A frame vector holds the J - 1 non-root joints (the root sits at the origin), so a bone from the
 root is its child's position. DivSamp's and GSPS's limb losses compare bone lengths; MotionMap's
@@ -17,7 +17,7 @@ from jaxtyping import Array, ArrayLike, Float
 def bone_matrix(parents: tuple[int, ...]) -> np.ndarray:
     """Returns the `(D, D)` matrix `B` (D = 3 (J - 1)) with `frames @ B` = the bone vectors `p_i - p_parent(i)`, i = 1..J-1.
 
-    `frames` are root-relative and root-dropped (PROTOCOL sec. 1: the root sits at the origin, so a
+    `frames` are root-relative and root-dropped ([protocol §1][representation]: the root sits at the origin, so a
     bone from the root is its child's position). `B` holds only 0 and +-1, so the product is exactly
     the subtraction. It replaces two gathers over the joint axis, whose gradients are scatter-adds:
     in GSPS's generator step (1,600 futures) those took ~5% of the step.
@@ -47,7 +47,7 @@ def bone_vectors(frames: Float[ArrayLike, "... d"], parents: tuple[int, ...]) ->
 
 
 def bone_lengths(frames: Float[ArrayLike, "... d"], parents: tuple[int, ...]) -> Float[Array, "... b"]:
-    """Returns the `J - 1` bone lengths of root-relative, root-dropped frame vectors (PROTOCOL sec. 1)."""
+    """Returns the `J - 1` bone lengths of root-relative, root-dropped frame vectors ([protocol §1][representation])."""
     return jnp.linalg.norm(bone_vectors(frames, parents), axis=-1)
 
 

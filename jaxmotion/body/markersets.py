@@ -23,6 +23,8 @@ from typing import NamedTuple
 
 
 class MarkerSpec(NamedTuple):
+    """Where a marker sits on the body: on bone `role` (towards joint `to`, `along` its length) and offset `fwd`, `lat`, `up` metres."""
+
     role: str
     to: str | None
     along: float

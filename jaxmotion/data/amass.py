@@ -1,4 +1,4 @@
-"""AMASS under two protocols (PROTOCOL sec. 3): BeLFusion's 22 SMPL-H joints and MOJO's SMPL-X markers.
+"""AMASS under two protocols ([protocol §4][datasets]): BeLFusion's 22 SMPL-H joints and MOJO's SMPL-X markers.
 
     ds = load_amass("~/data/AMASS", "belfusion", model_path="~/body_models/smplh")   # <gender>/model.npz
     ds = load_amass("~/data/AMASS", "mojo", model_path="~/body_models/smplx", marker_vertices="CMU.json")
@@ -39,14 +39,14 @@ whose rate rounds to `s = 0` (under half the protocol's rate) is skipped, as BeL
   67) of the SMPL-X body driven by the file's root and 21 body joints (`poses[:, :66]`, SMPL-H G
   files as MOJO did; hands at the PCA mean, jaw and eyes zero) with `betas[:10]`, 15 fps,
   15 -> 45 frames, MM threshold 0.5; train CMU, HDM05 / test ACCAD, BMLhandball (`MOJO_SPLIT`).
-  Frames are global markers, each window canonicalised at its first frame (PROTOCOL sec. 4):
+  Frames are global markers, each window canonicalised at its first frame ([protocol §5][marker-canonicalisation]):
   X from the left to the right hip on the ground, Z up, Y = Z x X. MOJO applies this to the
   SMPL-X parameters (global orientation, `trans`), which rotates the body about the pelvis, not
   about `trans`: a point moves to `R (p - pelvis_0) + j0` with `j0 = pelvis - trans` (the rest
   pelvis, constant per sequence); `Sequence.canon`'s origin is set so `R (p - o)` is exactly that.
 
 Deviations from the references, on purpose: test windows start every `t_his` frames of each whole
-sequence (PROTOCOL sec. 3); BeLFusion evaluates fixed segments (`segments_test.csv`: predictions
+sequence ([protocol §4][datasets]); BeLFusion evaluates fixed segments (`segments_test.csv`: predictions
 from frame 180 every 120 frames) and MOJO one window per non-overlapping 4 s chunk (480 frames at
 120 fps; sequences under 4 s are dropped), which are every 4th of these windows. A NaN/inf in
 `poses`, `trans` or `betas` is a `DataError` (MOJO skips such files: `skip_nonfinite=True`).

@@ -18,7 +18,7 @@ from jaxmotion.errors import DataError
 BANDAI_TARBALL = "bandai2_dev.tar.xz"
 BANDAI_TRAIN_STYLES = ("active", "exhausted", "feminine", "masculine")
 BANDAI_TEST_STYLES = ("normal",)
-# PROTOCOL sec. 3, shared by the joint (`load_bandai`) and marker (`load_bandai_markers`) datasets.
+# protocol §4 (docs/pages/protocol.md#datasets), shared by the joint (`load_bandai`) and marker (`load_bandai_markers`) datasets.
 BANDAI_PROTOCOL = {"fps": 30.0, "t_his": 15, "t_pred": 60, "mm_threshold": 0.5}
 # A clip's file stem: `dataset-2_{content}_{style}_{id}`.
 BANDAI_NAME = re.compile(r"^dataset-2_(?P<content>[^_]+)_(?P<style>[^_]+)_(?P<id>\d+)$")

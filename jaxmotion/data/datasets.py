@@ -1,4 +1,4 @@
-"""Dataset definitions under the evaluation protocol (PROTOCOL sec. 3), each a `MotionDataset`.
+"""Dataset definitions under the evaluation protocol ([protocol §4][datasets]), each a `MotionDataset`.
 
 | loader | data | fps | t_his -> t_pred | joints kept (root first) | train / test |
 | --- | --- | --- | --- | --- | --- |

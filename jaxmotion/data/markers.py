@@ -2,7 +2,7 @@
 
     ds = load_bandai_markers("../shared/data/bandai-namco-2")       # a MotionDataset of 41 markers
     body, clips = bandai_marker_clips("../shared/data/bandai-namco-2")  # markers (T, 41, 3) per clip
-    x = canonicalise(window_markers, window_joints, names)           # PROTOCOL sec. 4, per window
+    x = canonicalise(window_markers, window_joints, names)           # protocol §5, per window
 
 Each clip's BVH rotations and root translation are the skeleton body's parameters (shape 0, the
 Bandai skeleton, `bandai` = CMU-41 markers), so every frame is a valid body by construction.
@@ -33,6 +33,8 @@ from jaxmotion.formats.bvh import read_bvh
 
 
 class MarkerClip(NamedTuple):
+    """One clip's virtual markers `(T, M, 3)` and joints `(T, J, 3)` in metres, with its style and content labels."""
+
     name: str
     style: str
     content: str
@@ -43,7 +45,7 @@ class MarkerClip(NamedTuple):
 def canonical_frames(joints: np.ndarray, names: tuple[str, ...], up_axis: int = 1) -> np.ndarray:
     """Returns `(T, 4, 3)`: MOJO's canonical frame at every frame of `joints (T, J, 3)`: rows R, then origin o.
 
-    PROTOCOL sec. 4: X from the left hip to the right hip projected to the ground, Z up (the data's
+    [protocol §5][marker-canonicalisation]: X from the left hip to the right hip projected to the ground, Z up (the data's
     `up_axis`), Y forward (Z x X), origin at the root (global translation). New coordinates of a
     point p are `R @ (p - o)` (`jaxmotion.data.windows.canonicalise_windows`).
     """
@@ -123,7 +125,7 @@ def marker_skeleton(marker_names: tuple[str, ...]) -> Skeleton:
 
 
 def load_bandai_markers(root: str | os.PathLike, marker_set: str = "bandai", cache_dir: str | os.PathLike | None = None):
-    """Returns Bandai-Namco-2 as a marker `MotionDataset` for MOJO (PROTOCOL sec. 3 split, sec. 4 frames).
+    """Returns Bandai-Namco-2 as a marker `MotionDataset` for MOJO ([protocol §4][datasets] split, [protocol §5][marker-canonicalisation] frames).
 
     The skeleton body of the Bandai skeleton carries `marker_set` (default `bandai`: CMU-41 with
     limb markers rigid per bone); each clip drives it, so every frame is a valid body. Same split,

@@ -1,7 +1,7 @@
 """Protocol windows of a dataset: the training sampler and the test windows every method is scored on.
 
 `prepare(ds)` returns a `Prepared`: the frame vectors for training (a `TrainSampler`) and the
-protocol's test windows (PROTOCOL sec. 3: test stride t_his, random training starts), with where
+protocol's test windows ([protocol §4][datasets]: test stride t_his, random training starts), with where
 each test window comes from. Training, evaluation and the pictures all read this one value.
 """
 
@@ -40,13 +40,13 @@ class Prepared:
 
 
 def prepare(ds: MotionDataset, max_test_windows: int | None = None, train_sampler: str = "windows", test_only: bool = False) -> Prepared:
-    """Returns train sampler and test windows (PROTOCOL sec. 3: test stride t_his, random train starts).
+    """Returns train sampler and test windows ([protocol §4][datasets]: test stride t_his, random train starts).
 
     `train_sampler` weights the training windows (`TrainSampler`): "windows" (each equally likely)
     or "sequences" (DLow's release: a sequence uniformly, then a start). `test_only`: no training
     windows are needed (the sampler is None), e.g. to evaluate a trained model on a new folder.
 
-    Marker datasets' windows are canonicalised at their first frame (PROTOCOL sec. 4).
+    Marker datasets' windows are canonicalised at their first frame ([protocol §5][marker-canonicalisation]).
     """
     train, train_canon = split_frames(ds, "train")
     test, test_canon = split_frames(ds, "test")
@@ -67,7 +67,7 @@ def check_lengths(
     ds: MotionDataset, train: list[np.ndarray], test: list[np.ndarray], train_sampler: str = "windows", test_only: bool = False
 ) -> None:
     """Raises `DataError` saying how many sequences there are, how long the longest is and what the protocol needs,
-    when no training window (unless `test_only`) or no test window fits (PROTOCOL sec. 3: test windows need T > t_total)."""
+    when no training window (unless `test_only`) or no test window fits in the `(T_i, d)` sequences ([protocol §4][datasets]: test windows need T > t_total)."""
     if train_sampler not in SAMPLER_WEIGHTINGS:
         return  # TrainSampler names the choices
     need = ds.t_total + (1 if train_sampler == "sequences" else 0)

@@ -1,7 +1,7 @@
 """Synthetic multimodal human motion with known modes: the library's built-in default dataset.
 
 Real datasets only ever show one future per past, so a method's mode coverage can only be
-estimated (PROTOCOL sec. 2, MM sets). Here the generating process is known, so every test window
+estimated ([protocol §2][metrics], MM sets). Here the generating process is known, so every test window
 comes with its full set of possible futures and their probabilities (`test_modes`).
 
 Skeleton
@@ -19,7 +19,7 @@ Motion
     `Rz @ Ry @ Rx`) in its parent's frame, driven by parametric functions of time; numpy forward
     kinematics turns them into global positions `(T, 17, 3)`. The root never rotates, the
     facing direction is +Z throughout, and the root's horizontal position stays at the origin
-    apart from the sway, so root-relative frames (PROTOCOL sec. 1) see all of the motion.
+    apart from the sway, so root-relative frames ([protocol §1][representation]) see all of the motion.
 
 Segments and modes
     A sequence is a concatenation of segments of exactly `t_pred = 60` frames (2 s at 30 fps).
@@ -74,7 +74,7 @@ Distances between modes (seed 0, 280 test windows, 15 pairs of modes per window)
     action has returned to (almost exactly) the neutral pose.
 
 MM threshold
-    `MM_THRESHOLD = 0.015` m on the 48-vector of the last observed pose (PROTOCOL sec. 2).
+    `MM_THRESHOLD = 0.015` m on the 48-vector of the last observed pose ([protocol §2][metrics]).
     Chosen so that MM ground truth is exact here: for seeds 0-5, the future of every member of
     a window's MM set is bitwise one of that window's 6 modes (tested), i.e. the MM futures are
     samples of the window's own modes. Above about 0.019 m this breaks (seed-dependent, up to
@@ -168,12 +168,12 @@ def make_subject(name: str, rng: np.random.Generator) -> SubjectParams:
 
 
 def sample_actions(rng: np.random.Generator, n: int) -> np.ndarray:
-    """Returns `n` i.i.d. action indices drawn with probabilities `MODE_PROBS`."""
+    """Returns `(n,)` i.i.d. action indices drawn with probabilities `MODE_PROBS`."""
     return rng.choice(len(MODE_NAMES), size=n, p=np.asarray(MODE_PROBS)).astype(np.int64)
 
 
 def envelope(u: np.ndarray) -> np.ndarray:
-    """Returns the action envelope at segment phase `u = frame / SEGMENT_LEN` in [0, 1].
+    """Returns the action envelope at segment phase `u = frame / SEGMENT_LEN` in [0, 1], of `u`'s shape.
 
     0 with zero slope at both ends, half-cosine ramps of `RAMP_FRAMES` frames, 1 in between.
     """

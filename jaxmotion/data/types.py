@@ -32,7 +32,7 @@ class Skeleton:
 class Sequence:
     """One recording: global joint (or marker) positions in metres, `(T, J, 3)`.
 
-    `canon` (marker datasets, PROTOCOL sec. 4) holds per frame t the canonical frame that a window
+    `canon` (marker datasets, [protocol §5][marker-canonicalisation]) holds per frame t the canonical frame that a window
     starting at t is expressed in: rows 0-2 the rotation R, row 3 the origin o (`p' = R (p - o)`).
     """
 
@@ -46,7 +46,7 @@ class Sequence:
 
 @dataclasses.dataclass
 class MotionDataset:
-    """A dataset under the evaluation protocol (PROTOCOL sec. 3).
+    """A dataset under the evaluation protocol ([protocol §4][datasets]).
 
     `skeleton` describes the kept joints (root first); a frame vector drops the root, so
     `dim == (skeleton.num_joints - 1) * 3`. Marker datasets (`info["frames"] == "global"`) keep

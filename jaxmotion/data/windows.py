@@ -1,4 +1,4 @@
-"""Windows of `t_his` observed + `t_pred` future frames (PROTOCOL sec. 1 and 3)."""
+"""Windows of `t_his` observed + `t_pred` future frames ([protocol §1][representation] and [protocol §4][datasets])."""
 
 from __future__ import annotations
 
@@ -40,7 +40,7 @@ def test_starts(num_frames: int, t_total: int, step: int) -> np.ndarray:
 def test_windows(frames: list[np.ndarray], t_his: int, t_pred: int, step: int | None = None):
     """Returns `(windows (N, t_his+t_pred, D), seq_index (N,), start (N,))`.
 
-    Windows start every `step` frames (default `t_his`, PROTOCOL sec. 3) of each sequence in
+    Windows start every `step` frames (default `t_his`, [protocol §4][datasets]) of each sequence in
     `frames` (a list of `(T, D)` arrays).
     """
     step = t_his if step is None else step
@@ -69,7 +69,7 @@ def canonicalise_windows(windows: np.ndarray, canon: np.ndarray) -> np.ndarray:
 
 
 class TrainSampler:
-    """Draws training windows at random start frames (PROTOCOL sec. 3).
+    """Draws training windows at random start frames ([protocol §4][datasets]).
 
     `weighting="windows"` (default): a sequence is chosen with probability proportional to its
     number of valid starts, so every valid window is equally likely. `weighting="sequences"`: DLow's
@@ -117,7 +117,7 @@ SAMPLER_WEIGHTINGS = ("windows", "sequences")
 
 
 def sequence_frames(seqs: list[Sequence], root: int = 0) -> list[np.ndarray]:
-    """Returns the frame vectors of each sequence (see `to_frames`)."""
+    """Returns the frame vectors `(T_i, d)` of each sequence (see `to_frames`)."""
     return [to_frames(s.positions, root) for s in seqs]
 
 

@@ -1,4 +1,4 @@
-"""Evaluation (PROTOCOL secs. 2 and 5): the metrics' references, the protocol's averages and its deviations, evaluators.
+"""Evaluation ([protocol §2][metrics] and [protocol §6][reporting]): the metrics' references, the protocol's averages and its deviations, evaluators.
 
 - `jaxmotion.eval.metrics`: the per-window metrics (APD, ADE, FDE, MMADE, MMFDE, ...), pure functions.
 - `references`: where MMADE / MMFDE's multimodal ground truth comes from (`REFERENCES`).

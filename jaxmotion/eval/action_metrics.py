@@ -1,4 +1,4 @@
-"""Metrics that need action labels: BeLFusion's CMD and an FID over a project-trained action classifier (PROTOCOL sec. 2).
+"""Metrics that need action labels: BeLFusion's CMD and an FID over a project-trained action classifier ([protocol §3][realism-and-action-metrics]).
 
 CMD (cumulative motion distribution, BeLFusion Sec. 4 / `metrics/evaluation.py` `cmd`). For class c,
 `M_t` is the mean over the class's test windows, their K samples and the points of a frame of the
@@ -146,7 +146,7 @@ def cmd(profiles: Float[ArrayLike, "n t1"], labels: ArrayLike, reference: Mappin
     """Returns CMD: the class-frequency-weighted sum of `class_cmd` (module docstring).
 
     `profiles[i]` is window i's displacement profile averaged over its K samples, `labels[i]` its
-    class, `reference[c]` the class's `Mbar_c` (`reference_displacement`).
+    class (`(n,)`), `reference[c]` the class's `Mbar_c` (`reference_displacement`).
     """
     profiles, labels = np.asarray(profiles, np.float64), np.asarray(labels)
     if profiles.ndim != 2 or labels.shape != profiles.shape[:1]:

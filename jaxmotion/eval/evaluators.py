@@ -20,13 +20,14 @@ from jaxmotion.eval.metrics import WindowMetricStream, mode_recall
 
 
 class ProtocolMetrics:
-    """APD, ADE, FDE, MMADE, MMFDE, ADE-m, FDE-m and the MM set statistics (PROTOCOL sec. 2)."""
+    """APD, ADE, FDE, MMADE, MMFDE, ADE-m, FDE-m and the MM set statistics ([protocol §2][metrics])."""
 
     def __init__(self, gt: np.ndarray, truth: MMGroundTruth, deviation: Deviation, poses: np.ndarray | None = None):
         self.gt, self.truth, self.deviation = np.asarray(gt, np.float32), truth, deviation
         self.sets: WindowSets = window_sets(truth.sets, self.gt, truth.futures, deviation, poses)
 
     def stream(self, copies: int = 1):
+        """Returns one predictor's accumulator: `add(start, pred)` per chunk, then `result()` (module docstring)."""
         s = WindowMetricStream(self.gt, self.sets.futures, self.sets.idx, self.sets.used, **self.truth.transfer())
         return _Accumulator(lambda start, p: s.add(p), lambda: averages(s.result(), self.sets, self.deviation))
 
@@ -38,6 +39,7 @@ class ModeRecall:
         self.modes, self.threshold, self.max_boundary, self.batch = modes, threshold, max_boundary, batch
 
     def stream(self, copies: int = 1):
+        """Returns one predictor's accumulator: `add(start, pred)` per chunk, then `result()` (module docstring)."""
         parts = []
 
         def add(start, p):
@@ -67,6 +69,7 @@ class MethodMetrics:
         self.per_window, self.gt = per_window, gt
 
     def stream(self, copies: int = 1):
+        """Returns one predictor's accumulator: `add(start, pred)` per chunk, then `result()` (module docstring)."""
         parts = []
 
         def result():
@@ -82,6 +85,7 @@ class ActionMetrics:
         self.action = action
 
     def stream(self, copies: int = 1):
+        """Returns one predictor's accumulator: `add(start, pred)` per chunk, then `result()` (module docstring)."""
         parts = []
         return _Accumulator(lambda start, p: parts.append(self.action.chunk(p, copies)), lambda: self.action.result(parts))
 

@@ -1,4 +1,4 @@
-"""The evaluation of a trained method: every predictor at every K through every evaluator (PROTOCOL sec. 5 records).
+"""The evaluation of a trained method: every predictor at every K through every evaluator ([protocol §6][reporting] records).
 
 `evaluate` builds the evaluators once (the multimodal ground truth of `Config.mm_ground_truth`
 or the method's own, the deviation of `Config.mm_deviation`, mode recall where the dataset knows
@@ -69,7 +69,7 @@ def action_evaluator(cfg: Config, prep: Prepared) -> action_metrics.ActionEvalua
 
 
 def select_windows(prep: Prepared, sel: np.ndarray) -> Prepared:
-    """Returns `prep` with only the test windows `sel`."""
+    """Returns `prep` with only the test windows `sel` (indices `(n,)`)."""
     return dataclasses.replace(prep, windows=prep.windows[sel], seq_index=prep.seq_index[sel], starts=prep.starts[sel],
                                keep=prep.keep[sel])
 
@@ -101,7 +101,7 @@ def evaluators(cfg: Config, method: Method, prep: Prepared, params: dict) -> tup
 
 
 def evaluate(cfg: Config, method: Method, prep: Prepared, params: dict, workdir: Path, data_label: str | None = None) -> list[dict]:
-    """Returns and writes (`workdir/metrics.json`) one PROTOCOL sec. 5 record per (predictor, K).
+    """Returns and writes (`workdir/metrics.json`) one [protocol §6][reporting] record per (predictor, K).
 
     `cfg` is resolved (its `method_config` checked, `experiment.resolve`); `method` is its method.
     """
@@ -123,7 +123,7 @@ def evaluate(cfg: Config, method: Method, prep: Prepared, params: dict, workdir:
                 m = {}
                 for s in streams:
                     m.update(s.result())
-            m.pop("n_windows")  # a top-level field of the record (PROTOCOL sec. 5)
+            m.pop("n_windows")  # a top-level field of the record (protocol §6 (docs/pages/protocol.md#reporting))
             rec = {
                 "dataset": data_label or ds.name,
                 "method": name,

@@ -1,4 +1,4 @@
-"""Diversity and accuracy metrics of stochastic motion prediction (PROTOCOL sec. 2, DLow definitions).
+"""Diversity and accuracy metrics of stochastic motion prediction ([protocol §2][metrics], DLow definitions).
 
 Shapes: predictions `pred (N, K, t_pred, D)`, ground truth `gt (N, t_pred, D)`; every distance is
 Euclidean over the whole D-vector of a frame (or over the whole `t_pred * D` vector for APD).
@@ -167,28 +167,28 @@ def _apd(pred: Float[Array, "n k t d"]) -> Float[Array, " n"]:
 
 @_checked
 def apd(pred: Float[ArrayLike, "n k t d"]) -> Float[Array, " n"]:
-    """Returns per-window APD `mean_{i<j} ||vec(Yhat_i) - vec(Yhat_j)||_2` (PROTOCOL sec. 2); 0 when K = 1."""
+    """Returns per-window APD `mean_{i<j} ||vec(Yhat_i) - vec(Yhat_j)||_2` ([protocol §2][metrics]); 0 when K = 1."""
     _check_finite("apd", "pred", pred)
     return _apd(jnp.asarray(pred, jnp.float32))
 
 
 @_checked
 def ade(pred: Float[ArrayLike, "n k t d"], gt: Float[ArrayLike, "n t d"]) -> Float[Array, " n"]:
-    """Returns per-window ADE `min_k (1/t_pred) sum_t ||Yhat_{k,t} - Y_t||_2` (PROTOCOL sec. 2)."""
+    """Returns per-window ADE `min_k (1/t_pred) sum_t ||Yhat_{k,t} - Y_t||_2` ([protocol §2][metrics])."""
     pred, gt = _check_pred_gt("ade", pred, gt)
     return _reduce_k(_ade_terms(pred, gt), "min")
 
 
 @_checked
 def fde(pred: Float[ArrayLike, "n k t d"], gt: Float[ArrayLike, "n t d"]) -> Float[Array, " n"]:
-    """Returns per-window FDE `min_k ||Yhat_{k,T} - Y_T||_2` (PROTOCOL sec. 2)."""
+    """Returns per-window FDE `min_k ||Yhat_{k,T} - Y_T||_2` ([protocol §2][metrics])."""
     pred, gt = _check_pred_gt("fde", pred, gt)
     return _reduce_k(_fde_terms(pred, gt), "min")
 
 
 @_checked
 def ade_median(pred: Float[ArrayLike, "n k t d"], gt: Float[ArrayLike, "n t d"]) -> Float[Array, " n"]:
-    """Returns per-window ADE-m: the ADE term's median over k instead of its min (PROTOCOL sec. 2).
+    """Returns per-window ADE-m: the ADE term's median over k instead of its min ([protocol §2][metrics]).
 
     For even K the median is the mean of the two middle values (numpy's convention).
     """
@@ -198,7 +198,7 @@ def ade_median(pred: Float[ArrayLike, "n k t d"], gt: Float[ArrayLike, "n t d"])
 
 @_checked
 def fde_median(pred: Float[ArrayLike, "n k t d"], gt: Float[ArrayLike, "n t d"]) -> Float[Array, " n"]:
-    """Returns per-window FDE-m: the FDE term's median over k instead of its min (PROTOCOL sec. 2)."""
+    """Returns per-window FDE-m: the FDE term's median over k instead of its min ([protocol §2][metrics])."""
     pred, gt = _check_pred_gt("fde_median", pred, gt)
     return _reduce_k(_fde_terms(pred, gt), "median")
 
@@ -216,7 +216,7 @@ def multimodal_gt(
     reference_last_poses: Float[ArrayLike, "r d"] | None = None,
     max_chunk_elems: int = 2_000_000,
 ) -> MMSets:
-    """Returns left-packed `MMSets(idx (N, M), mask (N, M))` with `MM(i) = {j : ||c_i - c_j||_2 < thr}` (PROTOCOL sec. 2).
+    """Returns left-packed `MMSets(idx (N, M), mask (N, M))` with `MM(i) = {j : ||c_i - c_j||_2 < thr}` ([protocol §2][metrics]).
 
     `M` is the largest set size. By default the candidates `j` are the test windows themselves and
     `MM(i)` includes `i` (`exclude_self=True` drops it). With `reference_last_poses` (e.g. the last
@@ -272,7 +272,7 @@ def _left_packed(rows: list[np.ndarray], cols: list[np.ndarray], n: int) -> tupl
 
 
 # --------------------------------------------------------------------------------------------
-# MotionMap's multimodal ground truth (PROTOCOL sec. 2 option; MotionMap appendix A): candidates
+# MotionMap's multimodal ground truth (protocol §2 (docs/pages/protocol.md#metrics) option; MotionMap appendix A): candidates
 # are motion-transferred onto the window's skeleton before they are compared, and so are their futures.
 
 
@@ -334,7 +334,7 @@ def motionmap_mm_sets(
     max_chunk_elems: int = 4_000_000,
     cache_dir: str | Path | None = None,
 ) -> MMSets:
-    """Returns left-packed `MMSets` of MotionMap's multimodal ground truth (appendix A; PROTOCOL sec. 2 option).
+    """Returns left-packed `MMSets` of MotionMap's multimodal ground truth (appendix A; [protocol §2][metrics] option).
 
     `desc[i]` is window i's descriptor (its last three observed frames). Candidate j is a member of
     MM(i) when `||vec(transfer(desc_j -> skeleton of i)) - vec(desc_i)|| < thr`, the skeleton of i
@@ -486,7 +486,7 @@ def mm_errors(
     *,
     batch_size: int = 16,
 ) -> tuple[Float[Array, " n"], Float[Array, " n"]]:
-    """Returns per-window `(MMADE, MMFDE)`: mean over `m in MM(i)` of `min_k` ADE/FDE term vs `futures[m]` (PROTOCOL sec. 2).
+    """Returns per-window `(MMADE, MMFDE)`: mean over `m in MM(i)` of `min_k` ADE/FDE term vs `futures[m]` ([protocol §2][metrics]).
 
     `idx`/`mask` come from `multimodal_gt`; `futures` are the futures it indexes (the test
     ground truth, or the reference futures). Windows with an empty set give NaN. Windows are
@@ -510,7 +510,7 @@ def mm_errors_transferred(
 ) -> tuple[Float[Array, " n"], Float[Array, " n"]]:
     """Returns per-window `(MMADE, MMFDE)` with each MM future motion-transferred onto the window's skeleton first.
 
-    MotionMap's evaluation (PROTOCOL sec. 2, MotionMap option): `futures[idx[i, m]]` is moved onto
+    MotionMap's evaluation ([protocol §2][metrics], MotionMap option): `futures[idx[i, m]]` is moved onto
     the skeleton of `last_pose[i]` before the min-over-K ADE / FDE term. NaN for an empty set. The
     same blocked kernel as `mm_errors`.
     """
@@ -529,7 +529,7 @@ def mmade(
     *,
     batch_size: int = 16,
 ) -> Float[Array, " n"]:
-    """Returns per-window MMADE `mean_{m in MM(i)} min_k ADE-term(Yhat_k, Y_m)` (PROTOCOL sec. 2); see `mm_errors`."""
+    """Returns per-window MMADE `mean_{m in MM(i)} min_k ADE-term(Yhat_k, Y_m)` ([protocol §2][metrics]); see `mm_errors`."""
     return mm_errors(pred, futures, idx, mask, batch_size=batch_size)[0]
 
 
@@ -542,7 +542,7 @@ def mmfde(
     *,
     batch_size: int = 16,
 ) -> Float[Array, " n"]:
-    """Returns per-window MMFDE `mean_{m in MM(i)} min_k ||Yhat_{k,T} - Y_{m,T}||` (PROTOCOL sec. 2); see `mm_errors`."""
+    """Returns per-window MMFDE `mean_{m in MM(i)} min_k ||Yhat_{k,T} - Y_{m,T}||` ([protocol §2][metrics]); see `mm_errors`."""
     return mm_errors(pred, futures, idx, mask, batch_size=batch_size)[1]
 
 
@@ -581,7 +581,7 @@ def _pieces(pred) -> Iterator[np.ndarray | jax.Array]:
 
 
 class WindowMetricStream:
-    """Every per-window metric of PROTOCOL sec. 2 over predictions that arrive in pieces, in window order.
+    """Every per-window metric of [protocol §2][metrics] over predictions that arrive in pieces, in window order.
 
     `add(piece)` takes the next `(n_c, K, t_pred, D)` predictions; `result()` returns the `(N,)`
     numpy arrays keyed as `METRIC_NAMES` once every window has arrived. Windows are evaluated in
@@ -671,7 +671,7 @@ def window_metrics(
     transfer_poses: Float[ArrayLike, "n d"] | None = None,
     transfer_parents: tuple[int, ...] | None = None,
 ) -> dict[str, np.ndarray]:
-    """Returns every per-window metric of PROTOCOL sec. 2 as `(N,)` numpy arrays, keyed as `METRIC_NAMES`.
+    """Returns every per-window metric of [protocol §2][metrics] as `(N,)` numpy arrays, keyed as `METRIC_NAMES`.
 
     `pred` is either the whole `(N, K, t_pred, D)` array or an iterable of `(n_c, K, t_pred, D)`
     chunks whose concatenation along axis 0 is that array (e.g. a generator that samples the model
@@ -680,7 +680,7 @@ def window_metrics(
 
     With `transfer_parents` (the skeleton's parents, root first) and `transfer_poses` (each window's
     last observed pose), every MM future is motion-transferred onto the window's skeleton before
-    MMADE / MMFDE (MotionMap's evaluation, PROTOCOL sec. 2 option; `motion_transfer`).
+    MMADE / MMFDE (MotionMap's evaluation, [protocol §2][metrics] option; `motion_transfer`).
     """
     stream = WindowMetricStream(gt, futures, idx, mask, chunk_size=chunk_size, transfer_poses=transfer_poses,
                                 transfer_parents=transfer_parents)
@@ -720,7 +720,7 @@ def mode_recall(
     *,
     batch_size: int = 16,
 ) -> tuple[Float[Array, " n"], Float[Array, " n"]]:
-    """Returns per-window `(recall, weighted_recall)` of known future modes (synthetic data; PROTOCOL sec. 2 ADE term).
+    """Returns per-window `(recall, weighted_recall)` of known future modes (synthetic data; [protocol §2][metrics] ADE term).
 
     Each sample is assigned to its nearest valid mode by the ADE term
     `(1/T) sum_t ||Yhat_{k,t} - mode_{p,t}||`; a mode is reached when at least one sample assigned

@@ -1,6 +1,6 @@
 """The protocol's averages over windows, and each published code base's deviation from them, as values.
 
-PROTOCOL sec. 2 averages every metric over the test windows, MMADE / MMFDE over the windows with a
+[protocol §2][metrics] averages every metric over the test windows, MMADE / MMFDE over the windows with a
 non-empty multimodal set. Some published evaluation code averages differently; each such deviation
 is a `Deviation` value here (`DEVIATIONS`, chosen by `Config.mm_deviation`), off by default:
 
@@ -43,18 +43,18 @@ class WindowSets(NamedTuple):
 
 @dataclasses.dataclass(frozen=True)
 class Deviation:
-    """The protocol (PROTOCOL sec. 2). Subclasses reproduce published code; see the module docstring."""
+    """The protocol ([protocol §2][metrics]). Subclasses reproduce published code; see the module docstring."""
 
     name: str | None = None
     needs_test_sets: bool = False  # only defined on the test windows' own sets
     skips_windows: bool = False  # windows whose set is themselves alone are left out of every metric
 
     def used(self, mask: np.ndarray, idx: np.ndarray, is_self: np.ndarray, poses: ArrayLike | None) -> np.ndarray:
-        """Returns the members that enter the MM terms."""
+        """Returns the `(N, M)` mask of the members that enter the MM terms (`mask`, `idx`, `is_self`: `(N, M)`)."""
         return mask
 
     def averages(self, per: dict[str, np.ndarray], n_others: np.ndarray) -> dict[str, float]:
-        """Returns APD, ADE, FDE, ADE-m and FDE-m averaged over windows."""
+        """Returns APD, ADE, FDE, ADE-m and FDE-m averaged over windows (`per`: name -> `(N,)`; `n_others`: `(N,)`)."""
         return {k: float(np.mean(per[k], dtype=np.float64)) for k in METRIC_NAMES if not k.startswith("MM")}
 
     def reduce(self, per_window: np.ndarray, n_members: np.ndarray, n_others: np.ndarray) -> tuple[float, int]:
@@ -65,10 +65,14 @@ class Deviation:
 
 @dataclasses.dataclass(frozen=True)
 class DivSampRelease(Deviation):
+    """DivSamp's release: windows with no neighbour but themselves leave every metric's sum, not its count;
+    exact-duplicate start poses leave the MM sets."""
+
     name: str | None = "divsamp"
     needs_test_sets: bool = True
 
     def used(self, mask, idx, is_self, poses):
+        """Returns `mask` `(N, M)` without the members whose last pose equals the window's own (not itself)."""
         if poses is None:
             raise ValueError("mm_deviation='divsamp' needs the test windows' last poses (it drops exact duplicates)")
         poses = np.asarray(poses, np.float64)
@@ -76,27 +80,34 @@ class DivSampRelease(Deviation):
         return mask & ~dup
 
     def averages(self, per, n_others):
+        """Returns the averages with APD, ADE and FDE summed over windows with a neighbour, divided by all `N`."""
         out = super().averages(per, n_others)
         keep, n = n_others > 0, n_others.shape[0]
         out.update({k: float(np.sum(per[k][keep], dtype=np.float64) / n) for k in ("APD", "ADE", "FDE")})
         return out
 
     def reduce(self, per_window, n_members, n_others):
+        """Returns the sum over windows with a neighbour, divided by all `N`, and how many were summed."""
         keep = n_others > 0
         return float(per_window[keep].sum() / per_window.shape[0]), int(keep.sum())
 
 
 @dataclasses.dataclass(frozen=True)
 class CoMusionRelease(Deviation):
+    """CoMusion's release: MMADE / MMFDE averaged over the windows with a neighbour other than themselves."""
+
     name: str | None = "comusion"
 
     def reduce(self, per_window, n_members, n_others):
+        """Returns the mean over windows with a neighbour (NaN when none has one) and their number."""
         keep = n_others > 0
         return float(per_window[keep].mean()) if keep.any() else float("nan"), int(keep.sum())
 
 
 @dataclasses.dataclass(frozen=True)
 class GSPSRelease(Deviation):
+    """GSPS's evaluation: windows whose MM set is themselves alone are left out of every metric."""
+
     name: str | None = "gsps"
     needs_test_sets: bool = True
     skips_windows: bool = True
@@ -114,7 +125,7 @@ def deviation(name: str | None) -> Deviation:
 
 
 def multi_future_windows(last_poses: np.ndarray, thr: float) -> np.ndarray:
-    """Returns the indices of the windows whose test-window MM set holds another window (what `GSPS` keeps)."""
+    """Returns the indices `(n,)` of the windows (last poses `(N, d)`) whose test-window MM set holds another window (what `GSPS` keeps)."""
     sets = multimodal_gt(last_poses, thr)
     idx, mask = np.asarray(sets.idx), np.asarray(sets.mask)
     sel = np.flatnonzero((mask & (idx != np.arange(len(idx))[:, None])).any(axis=1))
@@ -125,7 +136,7 @@ def multi_future_windows(last_poses: np.ndarray, thr: float) -> np.ndarray:
 
 def window_sets(sets: MMSets, gt: np.ndarray, futures: ArrayLike | None, dev: Deviation = PROTOCOL,
                 poses: ArrayLike | None = None) -> WindowSets:
-    """Returns the `WindowSets` of `sets` over `futures` (None: the test windows' own futures `gt`) under `dev`.
+    """Returns the `WindowSets` of `sets` over `futures` `(R, t, d)` (None: the test windows' own futures `gt` `(N, t, d)`) under `dev`.
 
     `poses`: the windows' last observed poses, for the deviations that compare them (`DIVSAMP`).
     """
@@ -144,7 +155,7 @@ def window_sets(sets: MMSets, gt: np.ndarray, futures: ArrayLike | None, dev: De
 
 
 def averages(per: dict[str, np.ndarray], ws: WindowSets, dev: Deviation = PROTOCOL) -> dict[str, float]:
-    """Returns the window averages of `per` (`window_metrics`' arrays) and the MM set statistics, under `dev`.
+    """Returns the window averages of `per` (`window_metrics`' `(N,)` arrays) and the MM set statistics, under `dev`.
 
     Keys: `METRIC_NAMES`, `n_windows`; `MM_mean`, `MM_min`, `MM_max` (set sizes as built, i.e.
     including the window itself in test-window mode); `MM_only_self_frac` (fraction of windows with
@@ -172,7 +183,7 @@ def reduce_mm(
     n_others: Int[ArrayLike, " n"],
     mm_deviation: MMDeviation = None,
 ) -> tuple[float, int]:
-    """Returns `(average over windows, number of windows averaged)` of an MM metric (PROTOCOL sec. 2).
+    """Returns `(average over windows, number of windows averaged)` of an MM metric ([protocol §2][metrics]).
 
     `per_window` must have been computed on the sets the deviation prescribes, `n_members` is the
     size of those sets and `n_others` the number of members other than the window itself; see
@@ -195,19 +206,39 @@ def evaluate_windows(
     transfer_poses: Float[ArrayLike, "n d"] | None = None,
     transfer_parents: tuple[int, ...] | None = None,
 ) -> dict[str, float]:
-    """Returns APD, ADE, FDE, MMADE, MMFDE, ADE-m, FDE-m averaged over windows, plus MM statistics (PROTOCOL sec. 2).
+    """Returns APD, ADE, FDE, MMADE, MMFDE, ADE-m, FDE-m averaged over windows, plus MM statistics ([protocol §2][metrics]).
 
-    `mm` is either the `(N, D)` flattened last observed poses (then `thr` is required and the MM
-    sets are built with `multimodal_gt`) or precomputed `MMSets`. MM futures are the test ground
-    truth `gt` unless `reference_futures` is given (with `reference_last_poses` when `mm` is poses),
-    e.g. training windows for MotionMap comparisons. `pred` may be an iterable of window chunks;
-    see `metrics.window_metrics` (also for `transfer_poses` / `transfer_parents`: MotionMap's
-    motion-transferred MM futures, with `mm` then the `MMSets` of `motionmap_mm_sets`).
+        m = evaluate_windows(futures, gt, x[:, -1], thr=0.5)
+        m["ADE"], m["MMADE"]   # metres
 
-    `mm_deviation` reproduces published code (`DEVIATIONS`): "comusion" drops windows whose only
-    member is themselves from MMADE/MMFDE; "divsamp" (`mm` must be the last poses) drops exact
-    duplicate last poses from each set and skips windows with no other member, dividing by the
-    number of windows. The extra keys are `averages`'.
+    Args:
+        pred: the futures, `(N, K, t_pred, D)` metres, or an iterable of `(c, K, t_pred, D)` chunks in
+            window order (a generator keeps memory flat).
+        gt: each window's true future, `(N, t_pred, D)`.
+        mm: the windows' flattened last observed poses `(N, D)` (the multimodal sets are then built with
+            `multimodal_gt` at `thr`), or precomputed `MMSets`.
+        thr: the multimodal threshold in metres (the dataset's, [protocol §4][datasets]); required with poses.
+        reference_last_poses: `(R, D)` last observed poses of other windows (e.g. the training windows,
+            MotionMap's tables) to build the sets from; needs `reference_futures`.
+        reference_futures: `(R, t_pred, D)` futures of those windows: the multimodal ground truth instead of `gt`.
+        mm_deviation: `None` (the protocol), or a published code's deviation (`DEVIATIONS`): "comusion"
+            drops windows whose only member is themselves from MMADE / MMFDE; "divsamp" (`mm` must be the
+            poses) drops exact-duplicate last poses from each set and skips windows with no other member
+            while dividing by N (GSPS's, which skips windows, is `Config.mm_deviation` of a whole evaluation).
+        chunk_size: windows per jitted call.
+        transfer_poses: `(N, D)` poses whose bone lengths the multimodal futures are motion-transferred onto
+            (MotionMap's evaluation; `mm` is then the `MMSets` of `motionmap_mm_sets`).
+        transfer_parents: the skeleton's parent indices, with `transfer_poses`.
+
+    Returns:
+        `{name: float}`: "APD", "ADE", "FDE", "MMADE", "MMFDE", "ADE-m", "FDE-m" (metres; APD 0 when
+            K = 1); "n_windows"; the multimodal sets' sizes "MM_mean", "MM_min", "MM_max" (as built, the
+            window itself included with test-window sets); "MM_only_self_frac", the fraction of windows with
+            no multimodal future but their own; "MM_n_averaged", the windows that enter MMADE / MMFDE.
+
+    Raises:
+        ValueError: shapes disagree, an input holds NaN / inf, `thr` is missing with poses, or a
+            deviation is given inputs it cannot use.
     """
     fn = "evaluate_windows"
     gt = np.asarray(gt, np.float32)

@@ -1,4 +1,4 @@
-"""MOJO's realism metrics (PROTOCOL sec. 2): frequency-spectrum entropy, body and bone deformation, foot skating.
+"""MOJO's realism metrics ([protocol §3][realism-and-action-metrics]): frequency-spectrum entropy, body and bone deformation, foot skating.
 
 Motion is given as frame vectors `(..., T, D)` with `D = 3 * len(names)`: `names` name the points of
 a frame (joints or markers) in order. A metric that needs particular points looks them up by name
@@ -8,7 +8,7 @@ reduces over time (and points) only; callers average over samples and windows.
 Matched against the MOJO release (`yz-cnsdqz/MOJO-release`, `experiments/utils/eval_metrics.py`
 `compute_ps_entropy` / `compute_bone_deform`, `experiments/eval_bm_deform.py`,
 `experiments/eval_bm_skating.py`). One deliberate difference: the release averages `-p log p` over
-the frequency bins (its entropy divided by T); PROTOCOL asks for the entropy, the sum.
+the frequency bins (its entropy divided by T); the protocol ([protocol §3][realism-and-action-metrics]) asks for the entropy, the sum.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from jaxtyping import Array, ArrayLike, Float
 
 from jaxmotion.body.markersets import LIMB_MARKER_PAIRS
 
-# Rigid body parts whose marker distances should not change (PROTOCOL sec. 2; MOJO Tab. 2).
+# Rigid body parts whose marker distances should not change (protocol §3 (docs/pages/protocol.md#realism-and-action-metrics); MOJO Tab. 2).
 BODY_PARTS: dict[str, tuple[str, ...]] = {
     "head": ("LFHD", "RFHD", "RBHD", "LBHD"),
     "upper_torso": ("RSHO", "LSHO", "CLAV", "C7"),
@@ -121,7 +121,7 @@ def body_deformation(
     """Returns per rigid part P `sum_{i<j in P} std_t ||v_ti - v_tj||` in mm (MOJO Tab. 2 "body deformation").
 
     `motion` is in metres; `parts` maps a part name to its marker names (default: head, upper and
-    lower torso of PROTOCOL sec. 2). Distances between points do not depend on a global
+    lower torso of [protocol §3][realism-and-action-metrics]). Distances between points do not depend on a global
     translation, so root-relative frames give the same values as global ones.
     """
     needed = [n for part in parts.values() for n in part]
@@ -187,7 +187,7 @@ def foot_skating_ratio(
     min_speed: float = 0.075,
     heels: tuple[str, str] | None = None,
 ) -> Float[Array, "..."]:
-    """Returns the fraction of the T-1 frame steps in which both heels skate (MOJO Tab. 2, PROTOCOL sec. 2).
+    """Returns the fraction of the T-1 frame steps in which both heels skate (MOJO Tab. 2, [protocol §3][realism-and-action-metrics]).
 
     A heel skates on the step t-1 -> t when at frame t it is within `max_height` (5 cm) of the
     ground plane (`up_axis` coordinate = `ground`) and its speed parallel to the ground exceeds

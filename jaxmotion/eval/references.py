@@ -1,4 +1,4 @@
-"""Where MMADE / MMFDE's multimodal ground truth comes from (PROTOCOL sec. 2 and its options), as values.
+"""Where MMADE / MMFDE's multimodal ground truth comes from ([protocol §2][metrics] and its options), as values.
 
 A reference builds, for the test windows of a `Prepared`, an `MMGroundTruth`: the sets of
 futures each window is compared with, the futures those sets index, and (MotionMap's) the
@@ -27,7 +27,7 @@ from jaxmotion.data.prepare import Prepared
 from jaxmotion.data.windows import test_windows
 from jaxmotion.eval.metrics import MMSets, motionmap_mm_sets, multimodal_gt
 
-# MotionMap's descriptor: the last three observed frames (paper appendix A; PROTOCOL sec. 2 option).
+# MotionMap's descriptor: the last three observed frames (paper appendix A; protocol §2 (docs/pages/protocol.md#metrics) option).
 MOTIONMAP_DESCRIPTOR_FRAMES = 3
 
 
@@ -41,7 +41,7 @@ class MMGroundTruth(NamedTuple):
     transfer_parents: tuple[int, ...] | None  # MotionMap: the skeleton's parents (root first)
 
     def rows(self, sel: np.ndarray) -> MMGroundTruth:
-        """Returns the ground truth of the test windows `sel` (their sets still index every future)."""
+        """Returns the ground truth of the test windows `sel` (indices `(n,)`; their sets still index every future)."""
         sets = MMSets(np.asarray(self.sets.idx)[sel], np.asarray(self.sets.mask)[sel])
         poses = None if self.transfer_poses is None else self.transfer_poses[sel]
         return self._replace(sets=sets, transfer_poses=poses)
@@ -62,11 +62,12 @@ def _training_windows(prep: Prepared, name: str) -> np.ndarray:
 
 @dataclasses.dataclass(frozen=True)
 class TestWindows:
-    """The protocol's sets: test windows with a similar last observed pose (PROTOCOL sec. 2)."""
+    """The protocol's sets: test windows with a similar last observed pose ([protocol §2][metrics])."""
 
     name: str = "test"
 
     def build(self, prep: Prepared, cache_dir: str | Path | None = None) -> MMGroundTruth:
+        """Returns the ground truth of `prep`'s test windows: the test windows' sets over their own futures."""
         return MMGroundTruth(self.name, multimodal_gt(prep.x[:, -1], prep.dataset.mm_threshold), None, None, None)
 
 
@@ -77,6 +78,7 @@ class TrainWindows:
     name: str = "train"
 
     def build(self, prep: Prepared, cache_dir: str | Path | None = None) -> MMGroundTruth:
+        """Returns the ground truth of `prep`'s test windows: the training windows' sets and futures."""
         ds, ref = prep.dataset, _training_windows(prep, self.name)
         sets = multimodal_gt(prep.x[:, -1], ds.mm_threshold, reference_last_poses=ref[:, ds.t_his - 1])
         return MMGroundTruth(self.name, sets, ref[:, ds.t_his :], None, None)
@@ -93,6 +95,7 @@ class MotionMapSets:
         return f"motionmap-{self.pool}"
 
     def build(self, prep: Prepared, cache_dir: str | Path | None = None) -> MMGroundTruth:
+        """Returns the ground truth of `prep`'s test windows: MotionMap's sets, with the poses their futures are motion-transferred onto."""
         ds = prep.dataset
         ref = _training_windows(prep, self.name) if self.pool == "train" else None
         if prep.train_frames is None:

@@ -83,7 +83,7 @@ def motion_from_transforms(bvh: Bvh, local_r: np.ndarray, positions: dict[int, n
 
 
 def read_end_sites(path: str | os.PathLike) -> dict[int, np.ndarray]:
-    """Returns `{joint index: End Site OFFSET}` of a BVH file (what `read_bvh` skips), in joint order of `read_bvh`."""
+    """Returns `{joint index: End Site OFFSET of shape (3,)}` of a BVH file (what `read_bvh` skips), in joint order of `read_bvh`."""
     path = Path(path)
     out: dict[int, np.ndarray] = {}
     stack: list[int | None] = []
@@ -116,7 +116,7 @@ def read_end_sites(path: str | os.PathLike) -> dict[int, np.ndarray]:
 def write_bvh(path: str | os.PathLike, bvh: Bvh, end_sites: dict[int, np.ndarray] | None = None, precision: int = 6) -> Path:
     """Writes `bvh` (hierarchy and motion) as a BVH file and returns its path.
 
-    Every joint without children gets an End Site: its offset from `end_sites` (`read_end_sites` of the
+    Every joint without children gets an End Site: its `(3,)` offset from `end_sites` (`read_end_sites` of the
     source file) when given, else zero. Joints must be listed parents first, as `read_bvh` returns them.
     """
     path = Path(path)

@@ -19,7 +19,7 @@ def zero_velocity(t_pred: int, k: int):
 
 
 def window_batches(prep, batch_size: int) -> Callable[[np.random.Generator], np.ndarray]:
-    """Returns `rng -> (batch_size, t_total, D)` random training windows (PROTOCOL sec. 3)."""
+    """Returns `rng -> (batch_size, t_total, D)` random training windows ([protocol §4][datasets])."""
     return lambda rng: prep.sampler.sample(rng, batch_size)
 
 

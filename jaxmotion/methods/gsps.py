@@ -48,7 +48,7 @@ def _models(ds, c: GSPSConfig, execution: Execution = Execution()):
 
 
 def bounds_frames(frames: list[np.ndarray], n: int) -> np.ndarray:
-    """Returns `n` evenly spaced training frames (all when fewer): what the angle bounds are measured on."""
+    """Returns `(n, d)`: `n` evenly spaced training frames of the `(T_i, d)` sequences (all when fewer): what the angle bounds are measured on."""
     allf = np.concatenate(frames)
     return allf[np.linspace(0, len(allf) - 1, min(n, len(allf))).round().astype(int)]
 

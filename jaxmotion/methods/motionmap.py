@@ -82,13 +82,13 @@ class Pool:
         return self._sets
 
     def members(self, rng: np.random.Generator, j: np.ndarray) -> np.ndarray:
-        """Returns one random multimodal member of each pool window `j`."""
+        """Returns one random multimodal member `(n,)` of each pool window `j` `(n,)`."""
         idx, mask = self.sets
         counts = mask[j].sum(1)
         return idx[j, (rng.random(len(j)) * counts).astype(int)]
 
     def targets(self, j: np.ndarray, m: np.ndarray) -> np.ndarray:
-        """Returns the futures of members `m` motion-transferred onto the skeletons of windows `j`."""
+        """Returns the futures `(n, t_pred, d)` of members `m` `(n,)` motion-transferred onto the skeletons of windows `j` `(n,)`."""
         return np.asarray(self._transfer(jnp.asarray(self.y[m]), jnp.asarray(self.x[j, -1])))
 
     def member_subsets(

@@ -1,8 +1,8 @@
-"""An action classifier over future motion, whose penultimate layer gives the project's FID features (PROTOCOL sec. 2).
+"""An action classifier over future motion, whose penultimate layer gives the project's FID features ([protocol §3][realism-and-action-metrics]).
 
     h_t = GRU(h_{t-1}, y_t)   (h_0 = 0),    f = tanh(W_1 h_T + b_1),    logits = W_2 f + b_2
 
-over a future `y` of shape `(t_pred, D)` (frame vectors, PROTOCOL sec. 1). `f` (`features`
+over a future `y` of shape `(t_pred, D)` (frame vectors, [protocol §1][representation]). `f` (`features`
 numbers, 30 by default) is what FID compares. The layout follows BeLFusion's `ClassifierForFID`
 (`models/fid_classifier.py`: GRU, last hidden state, Linear(30) + tanh, Linear(classes)), with
 three differences: the initial hidden state is zero (BeLFusion draws `torch.randn` at every call,

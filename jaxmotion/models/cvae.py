@@ -194,7 +194,18 @@ def decode_k(model: GRUCVAE, params, x: Float[ArrayLike, "b t_his d"], z) -> Flo
 
 
 def sample_prior(model: GRUCVAE, params, x: Float[ArrayLike, "b t_his d"], key: jax.Array, k: int) -> Float[Array, "b k t_pred d"]:
-    """Returns K futures with latents drawn i.i.d. from N(0, I): the plain CVAE sampler (DLow's "CVAE" row, MOJO's VAE+DCT)."""
+    """Returns K futures with latents drawn i.i.d. from N(0, I): the plain CVAE sampler (DLow's "CVAE" row, MOJO's VAE+DCT).
+
+    Args:
+        model: the CVAE (`DLowCVAE`, `MojoCVAE`, ...).
+        params: its trained variables.
+        x: observed frames `(b, t_his, D)`, metres, root-relative.
+        key: a `jax.random` key; one draw of `(b, K) + model.latent_shape` latents.
+        k: the number of futures K.
+
+    Returns:
+        `(b, K, t_pred, D)` futures, vmapped over K (the past is encoded once).
+    """
     z = batch_rows(lambda n: jax.random.normal(key, (n, k) + model.latent_shape), x.shape[0])
     return decode_k(model, params, x, z)
 

@@ -235,7 +235,7 @@ def cosine_betas(noise_steps: int, s: float = 0.008) -> np.ndarray:
 
 
 def linear_betas(noise_steps: int, start: float = 1e-4, end: float = 0.02) -> np.ndarray:
-    """Returns DDPM's linear betas from `start` to `end`, scaled by 1000 / T as the release does."""
+    """Returns DDPM's linear betas `(noise_steps,)` from `start` to `end`, scaled by 1000 / T as the release does."""
     scale = 1000.0 / noise_steps
     return np.linspace(scale * start, scale * end, noise_steps)
 
@@ -339,7 +339,21 @@ def sample(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.A
     """Returns K futures per window: DDIM with DCT completion (`ddim_sample`), vmapped over the K samples.
 
     Sample k draws its start `x_T` from `split(key_k)[0]` and its completion noise from `split(key_k)[1]`,
-    `key_k = split(key, k)[k]`. `complete_frames` (None: the observed `t_his` frames; 0: no completion).
+    `key_k = split(key, k)[k]`.
+
+    Args:
+        model: the denoiser.
+        params: its trained variables.
+        x: observed frames `(b, t_his, D)`, metres, root-relative.
+        key: a `jax.random` key.
+        k: the number of futures K.
+        t_pred: the number of future frames.
+        abar: the `(T,)` cumulative products of `1 - beta` of the training noise schedule.
+        sampling_steps: DDIM steps (fewer is faster and less accurate: the Results page plots it).
+        complete_frames: observed frames put back at every step (None: all `t_his`; 0: no completion).
+
+    Returns:
+        `(b, K, t_pred, D)` futures.
     """
     x = jnp.asarray(x)
     b, t_his, d = x.shape
@@ -367,6 +381,8 @@ def sample(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.A
 
 
 class EmaState(NamedTuple):
+    """The state of the parameters' exponential moving average: the number of updates so far."""
+
     count: jax.Array
 
 

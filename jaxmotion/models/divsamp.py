@@ -262,7 +262,16 @@ def decode_k(cvae: DivSampCVAE, variables, cx: Float[ArrayLike, "b j c"], z: Flo
 
 
 def sample_prior(cvae: DivSampCVAE, variables, x: Float[ArrayLike, "b t_his d"], key, k: int, *, t_pred: int):
-    """Returns K futures `(b, K, t_pred, D)` with latents drawn i.i.d. from N(0, I): the plain CVAE baseline."""
+    """Returns K futures `(b, K, t_pred, D)` with latents drawn i.i.d. from N(0, I): the plain CVAE baseline.
+
+    Args:
+        cvae: DivSamp's GCN CVAE.
+        variables: its trained variables (parameters and BatchNorm statistics).
+        x: observed frames `(b, t_his, D)`, metres, root-relative.
+        key: a `jax.random` key.
+        k: the number of futures K.
+        t_pred: the number of future frames.
+    """
     cx = condition_nodes(x, t_pred, cvae.n_dct)
     z = batch_rows(lambda n: jax.random.normal(key, (n, k, cvae.nz)), x.shape[0])
     return decode_k(cvae, variables, cx, z, t_his=x.shape[1], t_pred=t_pred)
@@ -276,6 +285,16 @@ def sample_divsamp(
 
     Each of the K latents has its own noise draw, as the release's evaluation does (training shares
     one per window, `DivSampSampler`'s `shared_eps`).
+
+    Args:
+        cvae: the trained GCN CVAE (frozen).
+        cvae_variables: its variables.
+        sampler: the Gumbel-Softmax sampler; any K, not only the trained one.
+        sampler_variables: its variables.
+        x: observed frames `(b, t_his, D)`, metres, root-relative.
+        key: a `jax.random` key.
+        k: the number of futures K.
+        t_pred: the number of future frames.
     """
     cx = condition_nodes(x, t_pred, cvae.n_dct)
     z, _, _ = sampler.apply(sampler_variables, cx, key, k, train=False, shared_eps=False)

@@ -143,8 +143,22 @@ def q_model(c: QConfig, nz: int, nk: int, execution: Execution = Execution()) ->
     return DLowQ(nz=nz, nk=nk, nh_rnn=c.nh_rnn, nh_mlp=tuple(c.nh_mlp), execution=execution)
 
 
-def sample_dlow(cvae: DLowCVAE, cvae_params, q: DLowQ, q_params, x, key: jax.Array) -> Float[Array, "b nk t_pred d"]:
-    """Returns DLow's `nk` futures: one noise draw per window mapped to nk latents by Q (DLow Eq. (4))."""
+def sample_dlow(
+    cvae: DLowCVAE, cvae_params, q: DLowQ, q_params, x: Float[ArrayLike, "b t_his d"], key: jax.Array
+) -> Float[Array, "b nk t_pred d"]:
+    """Returns DLow's `nk` futures: one noise draw per window mapped to nk latents by Q (DLow Eq. (4)).
+
+    Args:
+        cvae: the trained CVAE (frozen).
+        cvae_params: its variables.
+        q: the Q network; its `nk` is K, fixed when it was trained.
+        q_params: its variables.
+        x: observed frames `(b, t_his, D)`, metres, root-relative.
+        key: a `jax.random` key; one `(b, nz)` noise draw per window.
+
+    Returns:
+        `(b, nk, t_pred, D)` futures.
+    """
     eps = batch_rows(lambda n: jax.random.normal(key, (n, cvae.nz)), x.shape[0])
     z, _, _ = q.apply(q_params, x, eps)
     return decode_k(cvae, cvae_params, x, z)

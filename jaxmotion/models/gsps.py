@@ -213,6 +213,7 @@ class PReLU(nn.Module):
         return jnp.where(neg, jnp.exp(self.log_a) * f, f), self.log_a * jnp.sum(neg, axis=-1)
 
     def inverse(self, y: Float[Array, "... d"]) -> Float[Array, "... d"]:
+        """Returns the input whose PReLU is `y`."""
         return jnp.where(y < 0, y * jnp.exp(-self.log_a), y)
 
 
@@ -241,6 +242,7 @@ class PosePrior(nn.Module):
         return d, logdet
 
     def inverse(self, z: Float[Array, "... dim"]) -> Float[Array, "... dim"]:
+        """Returns the pose whose flow output is `z`: the layers inverted in reverse order."""
         for layer in reversed(self.layers):
             z = layer.inverse(z)
         return z
@@ -645,7 +647,7 @@ def generator_loss(
 
 
 def candidate_pool(train_frames: list[np.ndarray], t_his: int, t_pred: int, stride: int) -> Float[np.ndarray, "n t d"]:
-    """Returns the candidate windows: every `stride` frames of every training sequence (release `data_candi`)."""
+    """Returns the candidate windows: every `stride` frames of every `(T_i, d)` training sequence (release `data_candi`)."""
     t = t_his + t_pred
     out = [f[s : s + t] for f in train_frames for s in range(0, f.shape[0] - t + 1, stride)]
     return np.stack(out).astype(np.float32)

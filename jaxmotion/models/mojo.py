@@ -232,8 +232,22 @@ def q_latents(model: MojoCVAE, q: MojoQ, q_params, x, key: jax.Array):
     return z.reshape(z.shape[:2] + model.latent_shape), a, b
 
 
-def sample_mojo(model: MojoCVAE, params, q: MojoQ, q_params, x, key: jax.Array) -> Float[Array, "b nk t_pred d"]:
-    """Returns MOJO's nk futures: per-band DLow on the lowest L bands, N(0, I) on the rest (MOJO Sec. 3.3)."""
+def sample_mojo(
+    model: MojoCVAE, params, q: MojoQ, q_params, x: Float[ArrayLike, "b t_his d"], key: jax.Array
+) -> Float[Array, "b nk t_pred d"]:
+    """Returns MOJO's nk futures: per-band DLow on the lowest L bands, N(0, I) on the rest (MOJO Sec. 3.3).
+
+    Args:
+        model: the trained latent-DCT CVAE (frozen).
+        params: its variables.
+        q: the per-band Q network (`nk` futures, `n_low` bands).
+        q_params: its variables.
+        x: observed frames `(b, t_his, D)` (joints, or markers in the canonical frame).
+        key: a `jax.random` key.
+
+    Returns:
+        `(b, nk, t_pred, D)` futures.
+    """
     z, _, _ = q_latents(model, q, q_params, x, key)
     return decode_k(model, params, x, z)
 

@@ -24,7 +24,7 @@ Inference: local maxima of the predicted map (minimum distance, relative thresho
 confidence (the map's value at the peak); each peak's codebook code is decoded with X.
 
 Everything below is a pure function or a Flax module; the stage wiring is `jaxmotion/methods/motionmap.py`.
-Frame vectors drop the root (PROTOCOL sec. 1): joint `j` of a frame is skeleton joint `j + 1`, and
+Frame vectors drop the root ([protocol §1][representation]): joint `j` of a frame is skeleton joint `j + 1`, and
 a link whose parent is the root starts at the origin.
 """
 
@@ -68,7 +68,7 @@ class MotionMapConfig:
     hm_convs: int = 6
     pos_weight: float = 10.0  # release `posWt`
     descriptor_frames: int = 3
-    mm_threshold: float | None = None  # None: the dataset's PROTOCOL threshold
+    mm_threshold: float | None = None  # None: the dataset's threshold (protocol §4, docs/pages/protocol.md#datasets)
     max_members: int = 64  # multimodal futures drawn into one ground-truth map (a random subset of larger sets)
     # Members sharing a map cell draw the same bump: True keeps one member per cell before the cap, so a
     # set larger than `max_members` keeps as many distinct cells as it can (the release draws every member).
@@ -329,9 +329,11 @@ class MotionMapAE(nn.Module):
         self.uncertainty_out = Dense((self.t_his + self.t_pred) * (self.dim // 3))
 
     def encode_x(self, x: Float[Array, "b t_his d"]) -> Float[Array, "b h"]:
+        """Returns the history encoder's last hidden state."""
         return self.enc_x(x, last_only=True)
 
     def encode_y(self, y: Float[Array, "b t_pred d"]) -> Float[Array, "b h"]:
+        """Returns the future encoder's last hidden state."""
         return self.enc_y(y, last_only=True)
 
     def decode(self, x: Float[Array, "b t_his d"], z_y: Float[Array, "b h"]):

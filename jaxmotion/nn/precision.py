@@ -1,7 +1,6 @@
 """The networks' matrix products in float32, or in bfloat16 with float32 accumulation (`Config.precision`).
 
-"float32" (the default) is the plain `x @ w` of every layer, bit for bit what the library computed
-before this option existed. "bf16" rounds both operands of each weight product to bfloat16 (8 bits of
+"float32" (the default) is the plain `x @ w` of every layer. "bf16" rounds both operands of each weight product to bfloat16 (8 bits of
 mantissa) and accumulates the sum in float32 (`preferred_element_type`), the products' result staying
 float32; parameters, optimiser state, activations, nonlinearities, BatchNorm, losses and metrics stay
 float32. On a CPU with bfloat16 instructions (`avx512_bf16`, `amx_bf16`) XLA's bfloat16 products run

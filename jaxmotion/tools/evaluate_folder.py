@@ -5,7 +5,7 @@
 The folder is read as `data.datasets.load_bvh_folder` reads it (each file in metres by its own unit,
 checked against a person's size; resampled from its own frame rate to the model's), its joints are
 matched to the model's (`joint_maps.match_skeleton`: a joint map, the names, or a built-in
-convention; the hierarchy checked), and the protocol's test windows (stride `t_his`, PROTOCOL sec. 3)
+convention; the hierarchy checked), and the protocol's test windows (stride `t_his`, [protocol §4][datasets])
 of the model's `t_his -> t_pred` are scored with the model's predictors (`experiment.evaluate`:
 APD, ADE, FDE, MMADE, MMFDE, ADE-m, FDE-m; multimodal ground truth over the folder's windows at the
 model's threshold).
@@ -48,7 +48,7 @@ def evaluate_folder(
     model: MotionPredictor, folder: str | Path, workdir: str | Path, *, k: int | None = None,
     scale: float | dict[str, float] | None = None, joint_map: dict[str, str] | None = None, seed: int | None = None,
 ) -> list[str]:
-    """Writes `workdir/metrics.json` (one record per predictor, PROTOCOL sec. 5) and returns the lines to print."""
+    """Writes `workdir/metrics.json` (one record per predictor, [protocol §6][reporting]) and returns the lines to print."""
     ds, how = folder_as_test_set(model, folder, scale=scale, joint_map=joint_map)
     k = k or model.default_k
     cfg = dataclasses.replace(model.config, eval_k=(k,), action_metrics=False, max_test_windows=None,

@@ -120,6 +120,7 @@ def plot_fit(out: dict, png: str | Path, n_frames: int = 4) -> Path:
 
 
 def main(argv=None) -> None:
+    """Runs `python -m jaxmotion.tools.fit_c3d FILE`: fits, prints the statistics as JSON and writes the picture."""
     ap = argparse.ArgumentParser(prog="python -m jaxmotion.tools.fit_c3d", description=__doc__.split("\n\n")[0])
     ap.add_argument("file", help="a .c3d file with labelled markers")
     ap.add_argument("--out", default=None, help="PNG to write (default: FILE stem + _fit.png in the current folder)")

@@ -118,7 +118,7 @@ def _checked(m: Motion, unique_names: bool = True) -> Motion:
 
 
 def match_joints(motion: Motion, joints: list[str], parents: list[int] | None = None, joint_map: dict[str, str] | None = None) -> np.ndarray:
-    """Returns the input joint index of each model joint (`joint_maps.match_skeleton`: a joint map, the names, or a built-in
+    """Returns the input joint index of each model joint, `(len(joints),)` (`joint_maps.match_skeleton`: a joint map, the names, or a built-in
     convention; the BVH's hierarchy checked against `parents`), or raises `DataError` saying what differs."""
     if motion.names is None:
         if motion.positions.shape[1] != len(joints):
@@ -149,8 +149,30 @@ def predict_file(
 ) -> list[str]:
     """Writes the K futures of the window of `path` ending at input frame `frame` to `out`; returns the lines to print.
 
-    `frame` defaults to the last frame whose full future is still in the clip (then the GIF shows the
-    ground truth), or the clip's last frame when it is shorter than `t_his + t_pred`.
+    Args:
+        model: a trained model (`jaxmotion.load`), of joints or of markers.
+        path: a BVH, C3D or NPZ clip (NPZ: `positions` `(T, J, 3)`, optional `names`, `fps`); its joints
+            are matched to the model's by name, by a built-in convention or by `joint_map`, and it is
+            resampled to the model's frame rate and turned onto its up axis when they differ.
+        out: a folder; receives `futures.npz` (the K futures as frame vectors and as joint positions in
+            metres, the observed window, the ground truth where the clip has it), `future_NN.bvh` per
+            future (BVH input) and `samples.gif` (with `gif`).
+        frame: the input frame the observed window ends at (default: the last frame whose whole future
+            is in the clip, so that the GIF shows the ground truth; else the clip's last frame).
+        k: the number of futures (default: the model's).
+        method: the predictor (default: the model's own).
+        seed: the `jax.random` seed of the futures.
+        scale: metres per file unit (default: guessed from the file).
+        gif: also write the animation.
+        joint_map: `{model joint: input joint}` for names that differ.
+
+    Returns:
+        The lines `jaxmotion predict` prints: what was read, every adjustment made, what was written.
+
+    Raises:
+        jaxmotion.errors.DataError: the clip cannot be read, its joints do not match the model's, or it is
+            shorter than `t_his` frames at the model's rate.
+        jaxmotion.errors.UsageError: `out` is a file, or `frame` is outside the clip.
     """
     if Path(out).exists() and not Path(out).is_dir():
         raise UsageError(f"--out {out} is a file; give a folder (it receives futures.npz, future_NN.bvh, samples.gif)")

@@ -9,7 +9,7 @@ two seen samples are filled by linear interpolation, as mocap software's default
 a longer gap, or one at the clip's start or end, inside the observed window is an error naming the
 markers and input frames (without `--frame`, the latest window free of such gaps is used). Positions
 are in metres (C3D POINT:UNITS), resampled to the model's frame rate by linear interpolation. The
-observed window is put in MOJO's canonical frame of its first frame (PROTOCOL sec. 4), computed
+observed window is put in MOJO's canonical frame of its first frame ([protocol §5][marker-canonicalisation]), computed
 from the waist markers: X from the left to the right waist markers on the ground, Z the input's
 up axis (the axis from the feet to the head markers), origin the waist markers' centre moved by
 their mean attachment offset (`body.markersets.MARKER_SPECS`) onto the pelvis joint the training
@@ -39,7 +39,7 @@ _LOWER = ("LHEE", "RHEE", "LHEL", "RHEL", "LTOE", "RTOE", "LANK", "RANK")
 
 
 def match_markers(path: Path, names: tuple[str, ...] | None, markers: list[str]) -> np.ndarray:
-    """Returns the input index of each model marker, or raises `DataError` listing the missing and extra markers."""
+    """Returns the input index of each model marker, `(len(markers),)`, or raises `DataError` listing the missing and extra markers."""
     if names is None:
         raise DataError(path, f"markers are matched by label: add 'names' to the npz (the model's: {markers})")
     clean = [n.split(":")[-1].strip() for n in names]
@@ -86,7 +86,7 @@ def up_vector(points: np.ndarray, names: tuple[str, ...]) -> tuple[np.ndarray, s
 
 
 def canonical_frame(frame: np.ndarray, names: tuple[str, ...], up: np.ndarray, path: Path) -> np.ndarray:
-    """Returns `(4, 3)`: rows R (X hips left->right on the ground, Y = Z x X, Z up), then origin o (PROTOCOL sec. 4)."""
+    """Returns `(4, 3)`: rows R (X hips left->right on the ground, Y = Z x X, Z up), then origin o ([protocol §5][marker-canonicalisation])."""
     left = [names.index(n) for n in _LEFT_WAIST if n in names]
     right = [names.index(n) for n in _RIGHT_WAIST if n in names]
     if not left or not right:
@@ -116,6 +116,8 @@ def _runs(frames: np.ndarray) -> str:
 
 
 class MarkerWindow(NamedTuple):
+    """The observed window of a marker clip in the model's canonical frame, its ground truth when the clip has it, and the way back."""
+
     x: np.ndarray  # (t_his, 3M) canonical frame of the window's first frame, the model's input
     gt: np.ndarray | None  # (t_pred, 3M) the frames after it, same frame, when the clip has them without gaps
     canon: np.ndarray  # (4, 3) rows R, then origin o: canonical q = R (p - o)

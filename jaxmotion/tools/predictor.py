@@ -186,8 +186,21 @@ class MotionPredictor:
     def predict(self, x, k: int | None = None, key: jax.Array | None = None, method: str | None = None) -> np.ndarray:
         """Returns `(K, t_pred, D)` futures for `x` `(t_his, D)`, or `(b, K, t_pred, D)` for `(b, t_his, D)`.
 
-        `x` is observed frames in `layout` (metres, root-relative, root dropped); `method` defaults to the
-        run's own (`methods` lists the others), `k` to the config's largest K, `key` to `key(0)`.
+        Args:
+            x: observed frames as `layout` describes them: `(t_his, D)` or `(b, t_his, D)`, metres,
+                root-relative with the root dropped (`D = (J - 1) * 3`), finite.
+            k: the number of futures K (default: the config's largest evaluated K).
+            key: a `jax.random` key (default `jax.random.key(0)`: the same futures every call).
+            method: the predictor (default: the run's own; `methods` lists the others, e.g. its CVAE
+                sampled from N(0, I)).
+
+        Returns:
+            numpy float32 futures, `(K, t_pred, D)` or `(b, K, t_pred, D)`, in the frames of `x`.
+
+        Raises:
+            ValueError: `x` has the wrong shape or holds NaN / inf.
+            jaxmotion.errors.UsageError: `k < 1`, or `method` is not available at that K.
+            jaxmotion.errors.CheckpointError: the futures are not finite (nothing is returned).
         """
         k = self.default_k if k is None else k
         x = np.asarray(x, np.float32)

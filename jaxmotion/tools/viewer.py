@@ -8,7 +8,7 @@ The page is one self-contained file (plotly's JavaScript is embedded, nothing is
 opened). It shows one test window at a time in plotly's 3-D scene (drag to rotate, scroll to zoom):
 the observed frames (grey), then the ground truth (magenta), the K predicted futures (viridis
 colours) and up to `mm` multimodal ground-truth futures (orange, dashed: the futures of the other
-test windows whose last observed pose is within the dataset's threshold, PROTOCOL sec. 2). Play /
+test windows whose last observed pose is within the dataset's threshold, [protocol §2][metrics]). Play /
 Pause and a time slider animate the motion; a dropdown per window shows all K futures overlaid or
 one of them; another shows or hides the ground truth and the multimodal ground truth (clicking a
 legend entry toggles one trace); the window dropdown chooses among the `windows` most multimodal test windows
@@ -125,7 +125,7 @@ def window_views(
     mm: int = 4,
     keep_skeleton: bool = False,
 ) -> tuple[list[WindowView], int]:
-    """Returns the views of test windows `windows` (indices into `prep`) and the K their futures were drawn at.
+    """Returns the views of test windows `windows` (indices `(n,)` into `prep`) and the K their futures were drawn at.
 
     `keep_skeleton`: each future is put on its window's bone lengths (its last observed frame; every
     predicted bone keeps its direction, `metrics.motion_transfer`), as `jaxmotion predict` writes them.

@@ -148,7 +148,7 @@ def replicate(tree, sharding: NamedSharding):
 
 
 def gather(x: jax.Array) -> np.ndarray:
-    """Returns the whole of `x` as numpy in every process (an all-gather when it spans several processes)."""
+    """Returns the whole of `x` (its global shape) as numpy in every process (an all-gather when it spans several processes)."""
     if x.is_fully_addressable:
         return np.asarray(x)
     return np.asarray(multihost_utils.process_allgather(x, tiled=True))

@@ -64,7 +64,7 @@ TrainState.__init__.__no_type_check__ = True
 
 
 def create_state(params, tx: optax.GradientTransformation, frozen=None) -> TrainState:
-    """Returns a fresh `TrainState` at step 0."""
+    """Returns a fresh `TrainState` at step 0: `params` to train with `tx`, `frozen` (any pytree) passed to the loss as it is."""
     return TrainState(step=jnp.zeros((), jnp.int32), params=params, opt_state=tx.init(params), frozen=frozen)
 
 
@@ -90,6 +90,18 @@ def make_train_step(loss_fn: LossFn, tx: optax.GradientTransformation, *, mesh: 
     divided by m before the one reduction (gradient accumulation: the global batch's gradient with a
     device holding the activations of only one micro-batch). The batch size must be a multiple of
     the device count times m.
+
+    Args:
+        loss_fn: `loss_fn(params, frozen, batch, key) -> (scalar loss, {name: scalar})`, a mean over
+            the windows of `batch`; `frozen` is `TrainState.frozen` (e.g. a trained CVAE's parameters).
+        tx: the optax optimiser; `create_state(params, tx, frozen)` makes the matching state.
+        mesh: the devices (default: every device on one "data" axis).
+        micro_batches: m, for gradient accumulation.
+
+    Returns:
+        `train_step(state, batch, key) -> (state, metrics)`, jitted: `batch` is `(B, t_his + t_pred, D)`
+            windows (or any array whose leading axis is the batch), `key` a `jax.random` key, `metrics`
+            the device-averaged `{name: scalar}` of `loss_fn` with "loss" and "grad_norm" added.
     """
     return _data_parallel_step(_grads(loss_fn, batch_norm=False), tx, mesh, micro_batches, batch_norm=False)
 

@@ -29,7 +29,7 @@ def layout(ds: MotionDataset) -> dict:
         "parents": [int(p) for p in ds.skeleton.parents],
         "root": ds.skeleton.names[0],
         "frames": "global" if marker else "root_relative",
-        "canonicalisation": "per window at its first frame (PROTOCOL sec. 4)" if marker else None,
+        "canonicalisation": "per window at its first frame (protocol §5)" if marker else None,
         "vector": "joints 1..J-1 x (x, y, z), root dropped" if not marker else "markers x (x, y, z), origin dropped",
         "units": "m",
         "fps": float(ds.fps),
