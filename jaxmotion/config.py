@@ -238,33 +238,34 @@ def memory_estimate(cfg: Config, dim: int, t_his: int, t_pred: int) -> dict[str,
     """Returns bytes of the largest single allocations the config asks for on data of frame size `dim`, by what.
 
     Lower bounds from the settings alone, not a profile: evaluation holds a batch of futures
-    (eval_batch x K x t_pred x D) and APD's pairwise distances (eval_batch x K x K); training the
-    widest layer's recurrent weights with their gradient and Adam's two moments (4 x 3 x W x max(W, D)),
-    and one batch's activations at that width (batch x K x (t_his + t_pred) x 3 W). float32 throughout.
+    (eval_batch x K x t_pred x D) and APD's pairwise distances (eval_batch x K x K); training, per
+    settings section (a stage), the widest layer's recurrent weights with their gradient and Adam's two
+    moments (4 x 3 x W x max(W, D)), and one batch's activations at that width (batch x K x
+    (t_his + t_pred) x 3 W). float32 throughout.
     """
     k = max(cfg.eval_k)
     out = {
         f"evaluation: eval_batch {cfg.eval_batch} x K {k} futures of {t_pred} frames x {dim}": cfg.eval_batch * k * t_pred * dim * 4.0,
         f"evaluation: APD's eval_batch {cfg.eval_batch} x K {k} x K {k} distances": cfg.eval_batch * k * k * 4.0,
     }
-    ints: dict[str, list[int]] = {}
-    todo = [cfg.method_config] if dataclasses.is_dataclass(cfg.method_config) else []
-    while todo:
-        obj = todo.pop()
+    sections = [cfg.method_config] if dataclasses.is_dataclass(cfg.method_config) else []
+    for obj in sections:  # each settings dataclass (a stage's section) on its own: its batch meets its widths
+        ints: dict[str, list[int]] = {}
         for f in dataclasses.fields(obj):
             v = getattr(obj, f.name)
             if dataclasses.is_dataclass(v) and not isinstance(v, type):
-                todo.append(v)
+                sections.append(v)
             elif isinstance(v, int) and not isinstance(v, bool):
                 ints.setdefault(f.name, []).append(v)
             elif isinstance(v, tuple) and all(isinstance(w, int) for w in v):
                 ints.setdefault(f.name, []).extend(v)
-    width = max((w for n, ws in ints.items() if WIDTH_FIELDS.search(n) for w in ws), default=0)
-    batch = max((b for n, bs in ints.items() if n.endswith("batch_size") for b in bs), default=0)
-    nk = max((x for n, xs in ints.items() if n in ("nk", "k", "num_k") for x in xs), default=1)
-    if width:
-        out[f"training: the widest layer's weights ({width}) with gradient and Adam's moments"] = 4 * 3 * width * max(width, dim) * 4.0
-        out[f"training: a batch of {batch} x {nk} samples x {t_his + t_pred} frames at width {width}"] = batch * nk * (t_his + t_pred) * 3 * width * 4.0
+        width = max((w for n, ws in ints.items() if WIDTH_FIELDS.search(n) for w in ws), default=0)
+        batch = max((b for n, bs in ints.items() if n.endswith("batch_size") for b in bs), default=0)
+        nk = max((x for n, xs in ints.items() if n in ("nk", "k", "num_k") for x in xs), default=1)
+        if width:
+            where = f"training ({type(obj).__name__})"
+            out[f"{where}: the widest layer's weights ({width}) with gradient and Adam's moments"] = 4 * 3 * width * max(width, dim) * 4.0
+            out[f"{where}: a batch of {batch} x {nk} samples x {t_his + t_pred} frames at width {width}"] = batch * nk * (t_his + t_pred) * 3 * width * 4.0
     return out
 
 

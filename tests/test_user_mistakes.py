@@ -118,7 +118,7 @@ def test_impossible_settings_are_named_before_anything_runs(cfg, match):
 
 
 @pytest.mark.parametrize("change, what", [
-    ({"method_config": DLowConfig(cvae=CVAEConfig(nh_rnn=10**6), q=QConfig())}, r"training: the widest layer's weights \(1000000\)"),
+    ({"method_config": DLowConfig(cvae=CVAEConfig(nh_rnn=10**6), q=QConfig())}, r"training \(CVAEConfig\): the widest layer's weights \(1000000\)"),
     ({"eval_batch": 10**9}, r"evaluation: eval_batch 1000000000 x K 50 futures"),
     ({"eval_batch": 10**6}, r"evaluation: eval_batch 1000000 x K 50 futures"),
     ({"eval_k": (10**6,)}, r"evaluation: APD's eval_batch 64 x K 1000000 x K 1000000 distances"),
@@ -197,7 +197,7 @@ def test_the_command_refuses_a_config_past_memory_in_one_line_before_training(tm
                        cwd=REPO, capture_output=True, text=True, timeout=300)
     assert r.returncode == 2, r.stderr[-2000:]
     lines = r.stderr.strip().splitlines()
-    assert len(lines) == 1 and "training: the widest layer's weights (1000000)" in lines[0] and "GiB at once" in lines[0], lines
+    assert len(lines) == 1 and "training (CVAEConfig): the widest layer's weights (1000000)" in lines[0] and "GiB at once" in lines[0], lines
     assert "data:" not in r.stdout and not (tmp_path / "run" / "cvae").exists()  # refused before any step
 
 
@@ -223,3 +223,26 @@ def test_orbax_thread_tracebacks_are_dropped_and_nothing_else(tmp_path):
     mine = exc_info_from(str(tmp_path / "my_module.py"))
     assert not _OrbaxThreadErrorsDropped.filter(record(orbax))
     assert _OrbaxThreadErrorsDropped.filter(record(mine)) and _OrbaxThreadErrorsDropped.filter(record(None))
+
+
+def test_a_training_step_out_of_memory_is_a_config_error_not_a_checkpoint_error(tmp_path):
+    from jaxmotion.train.loop import _raise_if_out_of_memory
+
+    oom = RuntimeError("RESOURCE_EXHAUSTED: Out of memory allocating 60963073504 bytes.")
+    with pytest.raises(ConfigError, match=r"cvae: a training step ran out of memory \(RuntimeError: RESOURCE_EXHAUSTED.*lower the batch size"):
+        _raise_if_out_of_memory(oom, tmp_path / "cvae")
+    _raise_if_out_of_memory(OSError(28, "No space left on device"), tmp_path / "cvae")  # a full disk stays a checkpoint error
+
+
+def test_a_full_disk_names_the_file_being_written(tmp_path, monkeypatch):
+    from jaxmotion.formats.atomic import write_text_atomic
+
+    from test_reliability_probes import _failing_writes_to
+
+    target = tmp_path / "metrics.json"
+    target.write_text("previous")
+    _failing_writes_to(monkeypatch, "metrics")
+    with pytest.raises(OSError, match=r"\[Errno 28\] No space left on device.*: '.*metrics\.json'") as e:
+        write_text_atomic(target, "x" * 100)
+    monkeypatch.undo()
+    assert e.value.filename == str(target) and target.read_text() == "previous"
