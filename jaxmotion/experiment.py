@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxmotion.train import distributed
-from jaxmotion.config import Config
+from jaxmotion.config import Config, check_memory
 from jaxmotion.data.datasets import BANDAI_TARBALL, load_dataset
 from jaxmotion.data.folder_split import folder_split
 from jaxmotion.data.prepare import Prepared, check_lengths, prepare
@@ -87,8 +87,11 @@ def train(cfg: Config, prep: Prepared, workdir: str | Path, resume: bool = False
     """Returns `{stage name: parameters}` after training every stage of the config's method (`runner.train`).
 
     Writes `workdir/predictor.json` first (`jaxmotion.tools.predictor`): what `jaxmotion.load` needs to predict.
+    A config whose largest allocation exceeds the memory here (`config.check_memory`) is refused before that.
     """
     method = get_method(cfg.method)
+    ds = prep.dataset
+    check_memory(cfg, ds.dim, ds.t_his, ds.t_pred)  # before the manifest or a step: refused with its estimate
     if distributed.is_main():
         write_manifest(cfg, prep.dataset, workdir)
     curve = eval_loop.learning_curve(cfg, method, prep) if cfg.curve_every > 0 else None

@@ -246,3 +246,14 @@ def test_a_full_disk_names_the_file_being_written(tmp_path, monkeypatch):
         write_text_atomic(target, "x" * 100)
     monkeypatch.undo()
     assert e.value.filename == str(target) and target.read_text() == "previous"
+
+
+def test_the_python_api_refuses_a_config_past_memory_before_writing_anything(tmp_path):
+    from jaxmotion import experiment
+    from jaxmotion.data.synthetic import make_synthetic
+
+    ds = make_synthetic(0, train_sequences=2, train_segments=4, test_sequences=1, test_segments=4)
+    cfg = experiment.resolve(Config(eval_batch=10**9))
+    with pytest.raises(ConfigError, match=r"config: evaluation: eval_batch 1000000000 x K 50 futures .* GiB at once"):
+        experiment.train(cfg, experiment.prepare(ds, 8), tmp_path / "run")
+    assert not (tmp_path / "run").exists()
