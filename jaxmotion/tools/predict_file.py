@@ -173,7 +173,8 @@ def predict_file(
     pos = motion.positions
     notes = motion.notes
     shift = 0
-    if motion.up_axis is not None and lay.get("up_axis") is None:  # a declared axis is honoured or refused, never dropped
+    if motion.bvh is None and motion.up_axis is not None and lay.get("up_axis") is None:
+        # An npz's declared axis is honoured or refused, never dropped (a BVH's Y up is a convention, not a declaration).
         raise DataError(path, f"'up_axis' is {'xyz'[motion.up_axis]}, but the model records no up axis to turn it onto; "
                               "remove 'up_axis' from the npz to give the positions in the model's own axes")
     if lay.get("up_axis") is not None and motion.up_axis is not None and motion.up_axis != lay["up_axis"]:
