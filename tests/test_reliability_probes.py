@@ -579,7 +579,7 @@ def test_predict_errors_are_one_line_each(run_copy, tmp_path):
     cases = [
         (["--frame", "100000"], r"--frame must be in \[0, 90\) for .*clip\.npz \(90 frames\), got 100000"),
         (["--method", "nope"], r"predict: method 'nope' at K=\d+ is not available; available: \["),
-        (["--k", "0"], r"argument --k: must be >= 1, got 0"),
+        (["--k", "0"], r"argument --k: must be in \[1, 2147483647\], got 0"),
         (["--seed", "-1"], r"argument --seed: must be in \[0, 4294967295\], got -1"),
         (["--scale", "-1"], r"argument --scale: must be a finite number > 0, got -1"),
     ]
