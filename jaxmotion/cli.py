@@ -37,18 +37,29 @@ from jaxmotion.errors import CheckpointError, ConfigError, DataError, RunFolderE
 USER_ERRORS = (DataError, ConfigError, CheckpointError, RunFolderError, UsageError, OSError)
 
 
-def _int_at_least(low: int):
+# Every integer option's upper end: a count past it is no count of windows, futures or frames (and would
+# overflow a C long inside numpy or jax); seeds have their own (`config.SEED_LIMIT`).
+INT_LIMIT = 2**31 - 1
+
+
+def _int_at_least(low: int, high: int = INT_LIMIT):
     def parse(text: str) -> int:
         try:
             v = int(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-        if v < low:
-            raise argparse.ArgumentTypeError(f"must be >= {low}, got {v}")
+        if not low <= v <= high:
+            raise argparse.ArgumentTypeError(f"must be in [{low}, {high}], got {v}")
         return v
 
-    parse.__name__ = f"integer >= {low}"
+    parse.__name__ = f"integer in [{low}, {high}]"
     return parse
+
+
+def _seed(text: str) -> int:
+    from jaxmotion.config import SEED_LIMIT
+
+    return _int_at_least(0, SEED_LIMIT - 1)(text)
 
 
 def _positive_float(text: str) -> float:
@@ -74,7 +85,7 @@ def _parser() -> argparse.ArgumentParser:
         s.add_argument("--config", default=None, help="Python config file defining get_config() (default: built-in synthetic job)")
         s.add_argument("--data", default=None, help="'synthetic', a BVH folder, the Bandai-Namco-2 folder, or an H36M/HumanEva .npz")
         s.add_argument("--workdir", default=None, help="output directory (default: runs/<config name>)")
-        s.add_argument("--seed", type=_int_at_least(0), default=None, help="override the config's seed (initialisation, batches, evaluation draws)")
+        s.add_argument("--seed", type=_seed, default=None, help="override the config's seed (initialisation, batches, evaluation draws)")
         s.add_argument("--test-files", nargs="+", default=None, metavar="PATTERN",
                        help="a plain BVH folder's test files (glob patterns on path, name or stem); default: by subject, else the last 20%% of files")
         s.add_argument("--precision", choices=("float32", "bf16"), default=None,
@@ -92,7 +103,7 @@ def _parser() -> argparse.ArgumentParser:
             g.add_argument("--model", default=None, help="a shipped model ('bandai'), an exported file or a run directory; "
                                                          "--data is then a folder of BVH clips, all of them test clips")
             g.add_argument("--joint-map", default=None, metavar="FILE", help='JSON {"model joint": "file joint"} (default: names, else a built-in map)')
-            g.add_argument("--k", type=int, default=None, help="number of futures (default: the model's largest K)")
+            g.add_argument("--k", type=_int_at_least(1), default=None, help="number of futures (default: the model's largest K)")
         if name == "sample":
             s.add_argument("--window", type=_int_at_least(0), default=0, help="test window index")
             s.add_argument("--k", type=_int_at_least(1), default=None, help="number of futures (default: largest K of the config; 10 with --fix-part)")
@@ -114,7 +125,7 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--scale", type=_positive_float, default=None, help="metres per file unit (default: guessed for BVH, 1 for npz)")
     s.add_argument("--joint-map", default=None, metavar="FILE",
                    help='JSON {"model joint": "file joint"} (default: same names, else a built-in map: CMU, Mixamo, LAFAN1, SMPL, Bandai-Namco)')
-    s.add_argument("--seed", type=_int_at_least(0), default=0, help="seed of the sampling key")
+    s.add_argument("--seed", type=_seed, default=0, help="seed of the sampling key")
     s.add_argument("--out", required=True, help="output folder: futures.npz, future_NN.bvh, samples.gif")
     s = sub.add_parser("export", help="write a trained run as one inference-only model file (for jaxmotion.load and predict --model)")
     s.add_argument("run_dir", help="a trained work directory (with predictor.json)")
@@ -130,7 +141,7 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--windows", type=_int_at_least(1), default=6, help="how many test windows, the most multimodal first (default 6)")
     s.add_argument("--k", type=_int_at_least(1), default=10, help="futures per window (default 10)")
     s.add_argument("--method", default=None, help="which predictor (default: the run's method)")
-    s.add_argument("--seed", type=_int_at_least(0), default=0, help="seed of the sampling key")
+    s.add_argument("--seed", type=_seed, default=0, help="seed of the sampling key")
     s.add_argument("--keep-skeleton", action="store_true",
                    help="put each future on its window's observed bone lengths (as predict writes them); default: the model's output")
     return p
@@ -215,12 +226,18 @@ def _with_overrides(cfg, args, source: str):
 def _run(args, cfg, workdir: Path, part_control, source: str) -> int:
     from jaxmotion import experiment
     from jaxmotion.train import distributed
-    from jaxmotion.config import validate
+    from jaxmotion.config import check_memory, validate
 
     t0 = time.perf_counter()
-    ds = experiment.load_data(cfg, args.data, args.test_files)
+    try:
+        ds = experiment.load_data(cfg, args.data, args.test_files)
+    except USER_ERRORS:
+        raise
+    except ValueError as e:  # a loader refusing an option: data_options or --test-files
+        raise ConfigError(source, [f"data_options {cfg.data_options} / --data / --test-files: {e}"]) from None
     prep = experiment.prepare(ds, cfg.max_test_windows, cfg.train_sampler)
     validate(cfg, prep.sampler.num_windows, source=source)
+    check_memory(cfg, ds.dim, ds.t_his, ds.t_pred, source=source)  # before any step is trained
     label = ds.name
     print(
         f"data: {ds.name}: {len(ds.train)} train / {len(ds.test)} test sequences, D={ds.dim}, "
@@ -440,6 +457,24 @@ class _LateLoopTracebacksDropped:
         return getattr(self.stream, name)
 
 
+class _OrbaxThreadErrorsDropped:
+    """A `logging` filter dropping the error records whose traceback runs through orbax's code.
+
+    When a checkpoint write fails (a full disk), orbax's writer threads log each failed array with its
+    traceback (logger `absl`), and asyncio logs each of their gathered futures again when it is collected
+    (logger `asyncio`, "exception was never retrieved"): a hundred lines or more around the one error.
+    The same failure reaches `train.loop._save`, which raises it as a `CheckpointError` naming the
+    folder, so those records say nothing new; every other record passes.
+    """
+
+    @staticmethod
+    def filter(record) -> bool:
+        import traceback
+
+        tb = record.exc_info[2] if record.exc_info else None
+        return tb is None or not any("/orbax/" in f.filename.replace("\\", "/") for f in traceback.extract_tb(tb))
+
+
 def _report(e: BaseException, prog: str = "jaxmotion") -> int:
     """Prints a user's error as one line on stderr; returns exit code 2."""
     print(f"{prog}: error: {e}", file=sys.stderr, flush=True)
@@ -453,12 +488,17 @@ def entry() -> int:
     what is wrong, so the traceback through jaxmotion's internals is left out (`USER_ERRORS`; a
     `SystemExit` with a message is one too). `main` itself raises them (for tests and for code that
     calls it). Tensorstore's late "Event loop is closed" tracebacks after a failed checkpoint restore
-    are dropped (`_LateLoopTracebacksDropped`), so the message is all a user sees.
+    are dropped (`_LateLoopTracebacksDropped`), and so are orbax's writer threads' logged tracebacks after a
+    failed checkpoint write (`_OrbaxThreadErrorsDropped`), so the message is all a user sees.
     """
     from jaxmotion.train.hugepages import exec_with_hugepages
 
     exec_with_hugepages()  # once, before anything runs: large XLA buffers in 2 MiB pages (jaxmotion/train/hugepages.py)
     sys.stderr = _LateLoopTracebacksDropped(sys.stderr)
+    import logging
+
+    for name in ("absl", "asyncio"):
+        logging.getLogger(name).addFilter(_OrbaxThreadErrorsDropped)
     try:
         return main()
     except USER_ERRORS as e:

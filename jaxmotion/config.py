@@ -11,6 +11,7 @@ import ast
 import contextlib
 import dataclasses
 import difflib
+import importlib.machinery
 import importlib.util
 import math
 import re
@@ -102,7 +103,9 @@ def load_config(path: str | Path | None) -> Config:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"config file not found: {path}")
-    spec = importlib.util.spec_from_file_location(f"jaxmotion_config_{path.stem}", path)
+    # A loader named explicitly: any file name is read as Python (`spec_from_file_location` knows only `.py`).
+    name = f"jaxmotion_config_{path.stem}"
+    spec = importlib.util.spec_from_loader(name, importlib.machinery.SourceFileLoader(name, str(path)))
     module = importlib.util.module_from_spec(spec)
     with _config_code(path, vars(module)):
         spec.loader.exec_module(module)
@@ -186,6 +189,8 @@ def _unknown_fields(path: Path, namespace: dict) -> list[str]:
     return problems
 
 
+SEED_LIMIT = 2**32  # jax.random.key keeps a seed's low 32 bits: 2**32 would be seed 0 again
+
 _CHOICES = {"split": ("test", "val"), "train_sampler": ("windows", "sequences"), "mm_deviation": (None, "divsamp", "comusion", "gsps"),
             "mm_ground_truth": (None, "test", "train", "motionmap-test", "motionmap-train"),
             "precision": PRECISIONS}
@@ -193,7 +198,8 @@ _CHOICES = {"split": ("test", "val"), "train_sampler": ("windows", "sequences"),
 _CONFIG_RULES = (
     *((n, lambda v: v >= 1, ">= 1") for n in ("ckpt_every", "log_every", "eval_batch", "micro_batches")),
     ("eval_k", lambda v: bool(v) and all(k >= 1 for k in v), ">= 1 each"),
-    ("seed", lambda v: v >= 0, ">= 0 (it seeds numpy's generators)"),
+    ("eval_k", lambda v: len(set(v)) == len(v), "distinct values (each K is one evaluation record)"),
+    ("seed", lambda v: 0 <= v < SEED_LIMIT, "in [0, 2**32) (a jax key keeps 32 bits of it)"),
     ("max_test_windows", lambda v: v is None or v >= 1, "None or >= 1"),
     ("mode_threshold", lambda v: v > 0, "> 0"),
     ("mode_max_boundary", lambda v: v >= 0, ">= 0"),
@@ -224,6 +230,69 @@ def validate(cfg: Config, num_train_windows: int | None = None, source: str = "c
         raise ConfigError(source, problems)
 
 
+# Fields of a method's settings that are layer widths or counts of units: each (or each entry of a tuple) >= 1.
+WIDTH_FIELDS = re.compile(r"(^|_)(nz|nh(_[a-z]+)?|hidden|latent|ff|features|base_dim|num_bases|n_dct|num_heads|hm_size|hm_channels)$")
+
+
+def memory_estimate(cfg: Config, dim: int, t_his: int, t_pred: int) -> dict[str, float]:
+    """Returns bytes of the largest single allocations the config asks for on data of frame size `dim`, by what.
+
+    Lower bounds from the settings alone, not a profile: evaluation holds a batch of futures
+    (eval_batch x K x t_pred x D) and APD's pairwise distances (eval_batch x K x K); training, per
+    settings section (a stage), the widest layer's recurrent weights with their gradient and Adam's two
+    moments (4 x 3 x W x max(W, D)), and one batch's activations at that width (batch x K x
+    (t_his + t_pred) x 3 W). float32 throughout.
+    """
+    k = max(cfg.eval_k)
+    out = {
+        f"evaluation: eval_batch {cfg.eval_batch} x K {k} futures of {t_pred} frames x {dim}": cfg.eval_batch * k * t_pred * dim * 4.0,
+        f"evaluation: APD's eval_batch {cfg.eval_batch} x K {k} x K {k} distances": cfg.eval_batch * k * k * 4.0,
+    }
+    sections = [cfg.method_config] if dataclasses.is_dataclass(cfg.method_config) else []
+    for obj in sections:  # each settings dataclass (a stage's section) on its own: its batch meets its widths
+        ints: dict[str, list[int]] = {}
+        for f in dataclasses.fields(obj):
+            v = getattr(obj, f.name)
+            if dataclasses.is_dataclass(v) and not isinstance(v, type):
+                sections.append(v)
+            elif isinstance(v, int) and not isinstance(v, bool):
+                ints.setdefault(f.name, []).append(v)
+            elif isinstance(v, tuple) and all(isinstance(w, int) for w in v):
+                ints.setdefault(f.name, []).extend(v)
+        width = max((w for n, ws in ints.items() if WIDTH_FIELDS.search(n) for w in ws), default=0)
+        batch = max((b for n, bs in ints.items() if n.endswith("batch_size") for b in bs), default=0)
+        nk = max((x for n, xs in ints.items() if n in ("nk", "k", "num_k") for x in xs), default=1)
+        if width:
+            where = f"training ({type(obj).__name__})"
+            out[f"{where}: the widest layer's weights ({width}) with gradient and Adam's moments"] = 4 * 3 * width * max(width, dim) * 4.0
+            out[f"{where}: a batch of {batch} x {nk} samples x {t_his + t_pred} frames at width {width}"] = batch * nk * (t_his + t_pred) * 3 * width * 4.0
+    return out
+
+
+def memory_limit() -> tuple[float, str]:
+    """Returns the bytes one allocation may take here and where: the first device's memory, else the host's RAM."""
+    import os
+
+    try:
+        import jax
+
+        dev = jax.devices()[0]
+        stats = dev.memory_stats() or {}
+        if stats.get("bytes_limit"):
+            return float(stats["bytes_limit"]), f"{dev.device_kind}'s memory"
+    except Exception:  # no backend yet: the host's memory is the bound
+        pass
+    return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")), "this machine's RAM"
+
+
+def check_memory(cfg: Config, dim: int, t_his: int, t_pred: int, source: str = "config") -> None:
+    """Raises `ConfigError` naming the largest allocation of `memory_estimate` when it exceeds `memory_limit` (before a step is trained)."""
+    limit, where = memory_limit()
+    what, b = max(memory_estimate(cfg, dim, t_his, t_pred).items(), key=lambda item: item[1])
+    if b > limit:  # the largest one: one line
+        raise ConfigError(source, [f"{what} need about {b / 2**30:,.0f} GiB at once, more than {where} ({limit / 2**30:.0f} GiB); lower it"])
+
+
 def _check_dataclass(obj, prefix: str, num_windows: int | None = None) -> list[str]:
     problems = []
     try:
@@ -239,6 +308,9 @@ def _check_dataclass(obj, prefix: str, num_windows: int | None = None) -> list[s
         if dataclasses.is_dataclass(v) and not isinstance(v, type):
             if prefix:  # `Config.method_config` itself is checked by `validate`
                 problems += _check_dataclass(v, name + ".", num_windows)
+        elif prefix and isinstance(v, tuple) and WIDTH_FIELDS.search(f.name):
+            if any(isinstance(w, int) and w < 1 for w in v):
+                problems.append(f"{name} (layer widths) must be >= 1 each, got {v}")
         elif prefix and not isinstance(v, bool):  # the method's settings: rules by field name
             problems += _check_value(name, f.name, v, num_windows)
     return problems
@@ -262,6 +334,8 @@ def _check_value(name: str, field: str, v, num_windows: int | None) -> list[str]
         return [f"{name} must be in [0, 1], got {v}"]
     if field in ("k", "nk", "num_k") and v < 1:
         return [f"{name} (K) must be >= 1, got {v}"]
+    if WIDTH_FIELDS.search(field) and v < 1:
+        return [f"{name} (a layer width) must be >= 1, got {v}"]
     return []
 
 

@@ -31,8 +31,11 @@ class ConfigError(ValueError):
 
     def __init__(self, source: str, problems: list[str]):
         self.source, self.problems = source, list(problems)
+        if len(self.problems) == 1:  # one line, as every other error the command prints
+            super().__init__(f"{source}: {self.problems[0]}")
+            return
         lines = "".join(f"\n  - {p}" for p in self.problems)
-        super().__init__(f"{source}: {len(self.problems)} problem{'s' if len(self.problems) != 1 else ''} in the config:{lines}")
+        super().__init__(f"{source}: {len(self.problems)} problems in the config:{lines}")
 
     def __reduce__(self):
         return type(self), (self.source, self.problems)

@@ -18,13 +18,14 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxmotion.train import distributed
-from jaxmotion.config import Config
+from jaxmotion.config import Config, check_memory
 from jaxmotion.data.datasets import BANDAI_TARBALL, load_dataset
 from jaxmotion.data.folder_split import folder_split
 from jaxmotion.data.prepare import Prepared, check_lengths, prepare
 from jaxmotion.data.synthetic import make_synthetic
 from jaxmotion.data.types import MotionDataset
 from jaxmotion.data.validation import validation_split
+from jaxmotion.errors import UsageError
 from jaxmotion.eval import loop as eval_loop
 from jaxmotion.eval.loop import format_record, predict_chunks
 from jaxmotion.method import Predictor
@@ -58,8 +59,10 @@ def _load_split(cfg: Config, data: str | None, test_files: list[str] | None) -> 
     """
     spec = data or cfg.dataset
     if spec == "synthetic":
-        if cfg.data_options or test_files:
-            raise ValueError(f"the synthetic dataset takes no data_options or test files, got {sorted(cfg.data_options)} {test_files or ''}")
+        if test_files:
+            raise UsageError(f"--test-files applies to a plain folder of BVH clips; the synthetic dataset has its own split, got {test_files}")
+        if cfg.data_options:
+            raise ValueError(f"the synthetic dataset takes no data_options, got {sorted(cfg.data_options)}")
         return make_synthetic(cfg.seed)
     path = Path(spec).expanduser()
     options = dict(cfg.data_options)
@@ -69,7 +72,7 @@ def _load_split(cfg: Config, data: str | None, test_files: list[str] | None) -> 
         ds.info["split"] = how
         return ds
     if test_files:
-        raise ValueError(f"--test-files applies to a plain folder of BVH clips; {spec} has its own protocol split")
+        raise UsageError(f"--test-files applies to a plain folder of BVH clips; {spec} has its own protocol split")
     return load_dataset(spec, **options)
 
 
@@ -84,8 +87,11 @@ def train(cfg: Config, prep: Prepared, workdir: str | Path, resume: bool = False
     """Returns `{stage name: parameters}` after training every stage of the config's method (`runner.train`).
 
     Writes `workdir/predictor.json` first (`jaxmotion.tools.predictor`): what `jaxmotion.load` needs to predict.
+    A config whose largest allocation exceeds the memory here (`config.check_memory`) is refused before that.
     """
     method = get_method(cfg.method)
+    ds = prep.dataset
+    check_memory(cfg, ds.dim, ds.t_his, ds.t_pred)  # before the manifest or a step: refused with its estimate
     if distributed.is_main():
         write_manifest(cfg, prep.dataset, workdir)
     curve = eval_loop.learning_curve(cfg, method, prep) if cfg.curve_every > 0 else None

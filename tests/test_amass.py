@@ -55,7 +55,7 @@ def fake_model(path: Path, parents: tuple[int, ...], seed: int, pca: bool) -> Pa
     n_j = len(parents)
     weights = rng.random((N_V, n_j)) ** 8
     weights /= weights.sum(1, keepdims=True)
-    jreg = rng.random((n_j, N_V))
+    jreg = rng.random((n_j, N_V)) ** 8  # each joint near a few vertices: a body about 1.5 m across, as a person's
     jreg /= jreg.sum(1, keepdims=True)
     extra = {}
     if pca:

@@ -35,9 +35,14 @@ H36M_LENGTHS = {
 }  # fmt: skip
 
 
+def joint_step(num_joints: int) -> float:
+    """Returns the unit of `joint_coded`: the last joint 1.5 m from the first, a person's size."""
+    return 1.5 / ((num_joints - 1) * np.sqrt(6))
+
+
 def joint_coded(t: int, num_joints: int) -> np.ndarray:
-    """Returns `(t, J, 3)` positions where joint j sits at (j, 2j, -j) + a per-frame shift."""
-    j = np.arange(num_joints, dtype=np.float32)
+    """Returns `(t, J, 3)` positions where joint j sits at (j, 2j, -j) `joint_step`s + a per-frame shift."""
+    j = np.arange(num_joints, dtype=np.float32) * np.float32(joint_step(num_joints))
     pose = np.stack([j, 2 * j, -j], axis=-1)
     return pose[None] + np.arange(t, dtype=np.float32)[:, None, None] * 0.01
 
@@ -65,7 +70,7 @@ def test_h36m(h36m_npz):
     assert all(f.shape[1] == 48 for f in frames)
     # Joint j was placed at (j, 2j, -j), so a frame lists the kept joints' original indices.
     kept = np.array([1, 2, 3, 6, 7, 8, 12, 13, 14, 15, 17, 18, 19, 25, 26, 27])
-    np.testing.assert_allclose(frames[0][0].reshape(16, 3), np.stack([kept, 2 * kept, -kept], -1))
+    np.testing.assert_allclose(frames[0][0].reshape(16, 3), np.stack([kept, 2 * kept, -kept], -1) * joint_step(32), rtol=1e-5)
     assert num_test_windows(ds) == 6
     assert load_dataset(str(h36m_npz)).name == "h36m"
 

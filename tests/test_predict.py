@@ -175,6 +175,24 @@ def test_predict_from_npz_positions(run, tmp_path):
     np.testing.assert_allclose(forward_kinematics(b)[14] * 0.01, pos[39], atol=1e-5)  # the last observed frame, in cm
 
 
+def test_an_up_axis_the_model_cannot_honour_is_refused(run, tmp_path, capsys):
+    """The synthetic run records no up axis: an npz that declares one is refused, not predicted in the wrong axes."""
+    _, ds, _, _, moved = run
+    np.savez(tmp_path / "clip.npz", positions=ds.test[0].positions[:40], names=np.array(ds.skeleton.names), up_axis=2)
+    assert main(["predict", str(moved), "--input", str(tmp_path / "clip.npz"), "--out", str(tmp_path / "o")]) == 2
+    assert "clip.npz: 'up_axis' is z, but the model records no up axis" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_an_empty_out_is_refused_not_the_current_folder(run, tmp_path, monkeypatch, capsys):
+    _, ds, _, _, moved = run
+    np.savez(tmp_path / "clip.npz", positions=ds.test[0].positions[:40], names=np.array(ds.skeleton.names))
+    monkeypatch.chdir(tmp_path)
+    assert main(["predict", str(moved), "--input", "clip.npz", "--out", ""]) == 2
+    assert "--out is empty; give the folder" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["clip.npz"]
+
+
 def test_folder_split_by_subject_by_file_and_by_pattern(tmp_path):
     for name in ["01_01", "01_02", "02_01", "03_01", "03_02"]:
         (tmp_path / f"{name}.bvh").write_text("")

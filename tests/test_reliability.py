@@ -286,7 +286,7 @@ def test_nan_in_bvh_names_file_frame_and_channel(tmp_path):
 
 
 def test_nan_in_npz_names_file_frame_and_joint(tmp_path):
-    t = np.zeros((4, 15, 3), np.float32)
+    t = np.repeat(np.linspace(0.5, 1.2, 15 * 3, dtype=np.float32).reshape(1, 15, 3), 4, 0)  # a person's size
     data = {s: {"Walking": t.copy()} for s in ("Train/S1", "Train/S2", "Train/S3", "Validate/S1", "Validate/S2", "Validate/S3")}
     data["Validate/S2"]["Walking"][2, 7, 0] = np.inf
     path = tmp_path / "humaneva.npz"

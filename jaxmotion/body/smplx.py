@@ -30,6 +30,8 @@ from jaxtyping import Array, Float
 from jaxmotion.body.params import BodyParams, zero_params
 from jaxmotion.body.rotation import axis_angle_to_matrix, rot6d_to_matrix
 from jaxmotion.body.skeleton import forward_kinematics
+from jaxmotion.errors import DataError
+from jaxmotion.formats.npz import read_arrays
 
 NUM_JOINTS = 55  # pelvis, 21 body, jaw, 2 eyes, 15 + 15 hand joints
 SMPLH_NUM_JOINTS = 52  # pelvis, 21 body, 15 + 15 hand joints
@@ -120,17 +122,15 @@ def load_smplx(
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: SMPL-X / SMPL-H model file not found")
-    try:
-        npz = np.load(path, allow_pickle=True)
-        data = {k: npz[k] for k in npz.files}
-    except Exception as e:
-        raise ValueError(f"{path}: cannot read npz ({type(e).__name__}: {e})") from e
-    missing = [k for k in REQUIRED_KEYS if k not in data]
-    if missing:
-        raise ValueError(f"{path}: missing keys {missing} (an SMPL-X model npz has {list(REQUIRED_KEYS)})")
+    keys = (*REQUIRED_KEYS, "hands_componentsl", "hands_componentsr", "hands_meanl", "hands_meanr")
+    data = read_arrays(path, keys, what="SMPL-X / SMPL-H model", required=REQUIRED_KEYS)
+    for k, a in data.items():
+        kind = np.integer if k == "kintree_table" else np.floating
+        if not np.issubdtype(a.dtype, kind):
+            raise DataError(path, f"{k} must hold {'integers' if kind is np.integer else 'floating-point numbers'}, got dtype {a.dtype}")
+        if not np.isfinite(a).all():
+            raise DataError(path, f"{k} holds NaN or inf")
     jreg = data["J_regressor"]
-    if jreg.dtype == object:  # a pickled scipy sparse matrix
-        jreg = jreg.item().toarray()
     v_t = np.asarray(data["v_template"], np.float64)
     n_v = v_t.shape[0]
     kin = np.asarray(data["kintree_table"]).astype(np.int64)

@@ -62,7 +62,6 @@ import dataclasses
 import hashlib
 import json
 import os
-import zipfile
 from pathlib import Path
 
 import jax
@@ -75,9 +74,11 @@ from jaxmotion.body.smplx import NUM_JOINTS, SMPLH_NUM_JOINTS, SmplxBody, load_s
 from jaxmotion.data.augment import left_right_pairs
 from jaxmotion.data.bandai import default_cache_dir
 from jaxmotion.data.markers import marker_skeleton
+from jaxmotion.data.plausible import check_positions
 from jaxmotion.data.types import MotionDataset, Sequence, Skeleton, check_finite
 from jaxmotion.errors import DataError
 from jaxmotion.formats.atomic import savez_atomic
+from jaxmotion.formats.npz import read_arrays
 
 # BeLFusion's lists (`data_loader/amass.py`, its released AMASS config), AMASS's current names.
 BELFUSION_SPLIT = {
@@ -144,13 +145,8 @@ def read_amass_file(path: str | os.PathLike, skip_nonfinite: bool = False) -> Am
     and that all three arrays are finite (the first bad frame is named; `skip_nonfinite`: None instead).
     """
     path = Path(path)
-    if not zipfile.is_zipfile(path):
-        raise DataError(path, "not an npz file (no zip archive: truncated, or another format?)")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except Exception as e:  # corrupt members, object arrays
-        raise DataError(path, f"cannot read npz file ({type(e).__name__}: {e})") from e
+    # Only the keys used: SMPL-X stage-ii files also hold pickled marker-to-vertex dicts, which are never unpickled.
+    data = read_arrays(path, ("poses", "trans", "betas", "mocap_framerate", "mocap_frame_rate", "gender"), what="AMASS sequence")
     rate_key = next((k for k in ("mocap_framerate", "mocap_frame_rate") if k in data), None)
     missing = [k for k in ("poses", "trans", "betas") if k not in data] + ([] if rate_key else ["mocap_framerate"])
     if missing:
@@ -274,11 +270,7 @@ def read_marker_vertices(marker_vertices) -> tuple[str, dict[str, int]]:
 
 def _model_joint_count(path: Path) -> int:
     """Returns the joint count of a model npz (52 SMPL-H, 55 SMPL-X) from its `kintree_table`, reading only that."""
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            kin = z["kintree_table"]
-    except Exception as e:
-        raise DataError(path, f"cannot read kintree_table of the body model ({type(e).__name__}: {e}). {MODEL_HELP}") from e
+    kin = read_arrays(path, ("kintree_table",), what="SMPL-X / SMPL-H model", required=("kintree_table",))["kintree_table"]
     return int(kin.shape[1]) if kin.ndim == 2 else -1
 
 
@@ -515,7 +507,9 @@ def _compute_subset(root: Path, files: list[Path], fps: float, mojo: bool, body_
         poses, trans = a.poses[::step], a.trans[::step]
         betas = a.betas[: body.num_betas]
         joints, markers = sequence_points(body, poses, trans, betas) if mojo else (body_joints(body, poses, trans, betas), None)
-        check_finite(f, joints, "joint positions")
+        check_positions(f, joints, "joint positions", units="from the body model, in metres")
+        if mojo:
+            check_positions(f, markers, "marker positions", units="from the body model, in metres")
         stem = f.name
         for suffix in SEQUENCE_SUFFIXES:
             stem = stem.removesuffix(suffix)

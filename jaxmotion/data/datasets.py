@@ -14,13 +14,9 @@ drops the root. `load_dataset(spec)` picks the loader from a path. `info` record
 
 from __future__ import annotations
 
-import io
 import json
 import os
-import pickle
-import pickletools
 import re
-import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -30,9 +26,11 @@ from jaxmotion.data.augment import left_right_pairs
 from jaxmotion.data.bandai import (  # noqa: F401 (BANDAI_TARBALL and default_cache_dir are public here too)
     BANDAI_NAME, BANDAI_PROTOCOL, BANDAI_TARBALL, BANDAI_TEST_STYLES, BANDAI_TRAIN_STYLES, bandai_clip_dir, default_cache_dir,
 )  # fmt: skip
+from jaxmotion.data.plausible import check_positions
 from jaxmotion.data.types import MotionDataset, Sequence, Skeleton, check_finite
 from jaxmotion.errors import DataError
 from jaxmotion.formats.bvh import Bvh, forward_kinematics, guess_scale, is_ground_skeleton, read_bvh
+from jaxmotion.formats.npz import read_array_dict
 
 # ----------------------------------------------------------------------------------------------
 # Human3.6M (VideoPose3D's data_3d_h36m.npz, metres, Z up)
@@ -109,71 +107,8 @@ def load_humaneva(npz_path: str | os.PathLike) -> MotionDataset:
 
 
 def _read_positions_3d(path: Path) -> dict:
-    """Returns the `positions_3d` dict of a VideoPose3D npz, or raises `DataError` naming `path`.
-
-    Read by hand rather than by `np.load`: `np.load` unpickles a file that is not a zip archive, and
-    a pickle whose length field is corrupt allocates that length (up to 4 GB) before it finds the data
-    missing. Here the pickle is first walked with `pickletools`, which checks every length against the
-    bytes there are, then loaded by `_ArrayUnpickler`, which builds only arrays, dicts, lists, strings
-    and numbers: a pickle naming any other callable (a downloaded file's payload) is refused before it
-    is called.
-    """
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: npz file not found")
-    if not zipfile.is_zipfile(path):
-        raise DataError(path, "not an npz file (no zip archive: truncated, or another format?)")
-    try:
-        with zipfile.ZipFile(path) as zf:
-            keys = sorted(n.removesuffix(".npy") for n in zf.namelist())
-            if "positions_3d" not in keys:
-                raise DataError(path, f"no key 'positions_3d' (keys: {keys})")
-            fp = io.BytesIO(zf.read("positions_3d.npy"))
-        version = np.lib.format.read_magic(fp)
-        read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
-        shape, _, dtype = read_header(fp)
-        if not (dtype.hasobject and shape == ()):
-            raise DataError(path, f"'positions_3d' must be a pickled dict {{subject: {{action: array}}}}, got a {dtype} array {shape}")
-        start = fp.tell()
-        for _ in pickletools.genops(fp):  # raises on a length past the end, before anything is allocated
-            pass
-        fp.seek(start)
-        obj = _ArrayUnpickler(fp, path).load()
-    except DataError:
-        raise
-    except Exception as e:  # zip, npy header, pickle and EOF errors from a corrupt or truncated file
-        raise DataError(path, f"cannot read npz file ({type(e).__name__}: {e})") from e
-    data = obj.item() if isinstance(obj, np.ndarray) and obj.dtype == object and obj.shape == () else obj
-    if not isinstance(data, dict) or not all(isinstance(v, dict) for v in data.values()):
-        raise DataError(path, "'positions_3d' must be a pickled dict {subject: {action: array}}")
-    return data
-
-
-# What numpy's pickle of an object array of dicts of arrays names (numpy 1.x and 2.x module paths).
-_PICKLE_GLOBALS = frozenset(
-    [("numpy", "ndarray"), ("numpy", "dtype")]
-    + [(m, f) for m in ("numpy.core.multiarray", "numpy._core.multiarray") for f in ("_reconstruct", "scalar")]
-)
-
-
-class _ArrayUnpickler(pickle.Unpickler):
-    """`pickle.Unpickler` that resolves only numpy's array constructors (`_PICKLE_GLOBALS`).
-
-    Dicts, lists, tuples, strings and numbers are pickle opcodes and need no lookup; every other
-    object a pickle builds goes through `find_class` first, so a refused name is never imported or called.
-    """
-
-    def __init__(self, fp, path: Path):
-        super().__init__(fp)
-        self.path = path
-
-    def find_class(self, module: str, name: str):
-        if (module, name) not in _PICKLE_GLOBALS:
-            raise DataError(self.path, f"'positions_3d' names {module}.{name}, which a dict of arrays never does; "
-                                       "refused without running it (only numpy arrays, dicts, lists, strings and numbers are loaded)")
-        return super().find_class(module, name)
-
-    def persistent_load(self, pid):
-        raise DataError(self.path, "'positions_3d' holds a persistent reference, which a dict of arrays never does")
+    """Returns the `positions_3d` dict of a VideoPose3D npz (`formats.npz.read_array_dict`: no code runs from the file)."""
+    return read_array_dict(path, "positions_3d")
 
 
 def _npz_sequences(
@@ -193,12 +128,7 @@ def _npz_sequences(
             if not isinstance(arr, np.ndarray) or arr.ndim != 3 or arr.shape[1:] != (num_joints, 3):
                 shape = arr.shape if isinstance(arr, np.ndarray) else type(arr).__name__
                 raise DataError(path, f"{where} must be a (T, {num_joints}, 3) array, got {shape}")
-            if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
-                raise DataError(path, f"{where} must hold real numbers, got dtype {arr.dtype}")
-            with np.errstate(over="ignore"):  # float64 beyond 3.4e38 becomes inf here, so check after the cast
-                full = arr.astype(np.float32)
-            check_finite(path, full, where)
-            pos = full[:, list(keep)]
+            pos = check_positions(path, arr, where, units="metres, as VideoPose3D stores them")[:, list(keep)]
             out.append(Sequence(pos, fps, subject, str(action), name=f"{subject}/{action}"))
     return out
 

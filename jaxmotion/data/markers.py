@@ -21,7 +21,7 @@ from typing import NamedTuple
 import jax
 import numpy as np
 
-from jaxmotion.body.markersets import resolve_roles
+from jaxmotion.body.markersets import MARKER_SETS, resolve_roles
 from jaxmotion.body.skeleton import params_from_bvh, skeleton_body_from_bvh
 from jaxmotion.data.bandai import (
     BANDAI_NAME, BANDAI_PROTOCOL, BANDAI_TEST_STYLES, BANDAI_TRAIN_STYLES, bandai_clip_dir, default_cache_dir,
@@ -136,6 +136,8 @@ def load_bandai_markers(root: str | os.PathLike, marker_set: str = "bandai", cac
     (for recursive projection), `info["point_names"]` the marker names, `info["up_axis"]` 2. The
     markers are computed once and cached as an npz beside the extracted clips.
     """
+    if not isinstance(marker_set, str) or marker_set not in MARKER_SETS:  # before a clip is read
+        raise ValueError(f"markers={marker_set!r}: unknown marker set; known: {sorted(MARKER_SETS)}")
     styles = BANDAI_TRAIN_STYLES + BANDAI_TEST_STYLES
     cache = Path(cache_dir or default_cache_dir()).expanduser().parent / f"bandai2_markers_{marker_set}_v{_CACHE_VERSION}.npz"
     body = None

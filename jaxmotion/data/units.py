@@ -18,11 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
+from jaxmotion.data.plausible import PLAUSIBLE_SIZE, body_size as positions_size
 from jaxmotion.errors import DataError
 from jaxmotion.formats.bvh import CMU_SCALE, Bvh, forward_kinematics, guess_scale, is_ground_skeleton
 
-# The largest joint-to-joint distance of a person (an infant to an adult with raised hands; the lower bound as `guess_scale`'s).
-PLAUSIBLE_SIZE = (0.5, 2.6)
 MAX_SIZE_RATIO = 2.0
 # Units a file may be in, offered in the error when its guess fails.
 KNOWN_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "CMU/ASF unit": CMU_SCALE, "foot": 0.3048}
@@ -33,10 +32,9 @@ def body_size(bvh: Bvh, frames: int = 8) -> float:
     pick = np.unique(np.linspace(0, max(bvh.num_frames - 1, 0), frames).round().astype(int))
     with np.errstate(over="ignore", invalid="ignore"):
         p = forward_kinematics(bvh, pick)
-        if is_ground_skeleton(bvh):
-            p = p[:, 1:]  # a ground node's place says nothing about the body
-        sizes = np.linalg.norm(p[:, :, None] - p[:, None], axis=-1).max(axis=(1, 2))
-    return float(np.median(sizes))
+    if is_ground_skeleton(bvh):
+        p = p[:, 1:]  # a ground node's place says nothing about the body
+    return positions_size(p, frames=len(p))
 
 
 def given_scale(scale: float | dict[str, float] | None, rel: Path) -> float | None:
@@ -78,6 +76,8 @@ def file_scales(bvhs: dict[Path, Bvh], scale: float | dict[str, float] | None, r
     """Returns metres per unit of every file (module docstring), or raises one `DataError` listing every file."""
     rows, scales = [], {}
     for path, bvh in bvhs.items():
+        if bvh.num_frames == 0:
+            raise DataError(path, "'Frames: 0': a skeleton without motion, nothing to read")
         rel = path.relative_to(root) if path.is_relative_to(root) else Path(path.name)
         s = given_scale(scale, rel)
         how = "given"

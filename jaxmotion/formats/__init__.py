@@ -5,6 +5,8 @@
   `bvh.is_ground_skeleton` (the same decided from the skeleton alone, once per folder).
 - `bvh_write.write_bvh` / `bvh_write.matrix_to_euler`: writing BVH files (the inverse of `bvh`).
 - `c3d.read_c3d`: labelled C3D marker trajectories with their gaps.
+- `npz.read_arrays` / `npz.read_array_dict`: a user's `.npz` without running code from it (plain arrays;
+  VideoPose3D's pickled dict of arrays through an unpickler that builds nothing else).
 
 This is the lowest layer: `formats <- body <- data` (body models read BVH files, dataset loaders
 use both). Nothing here imports `jaxmotion.body` or `jaxmotion.data`, not even `data.types`: a

@@ -19,9 +19,10 @@ from pathlib import Path
 import numpy as np
 
 from jaxmotion import experiment
+from jaxmotion.config import check_memory
 from jaxmotion.data.datasets import load_bvh_folder
 from jaxmotion.data.types import MotionDataset
-from jaxmotion.errors import DataError
+from jaxmotion.errors import DataError, UsageError
 from jaxmotion.tools.joint_maps import match_skeleton
 from jaxmotion.tools.predictor import MotionPredictor
 
@@ -49,8 +50,11 @@ def evaluate_folder(
     scale: float | dict[str, float] | None = None, joint_map: dict[str, str] | None = None, seed: int | None = None,
 ) -> list[str]:
     """Writes `workdir/metrics.json` (one record per predictor, [protocol §6][reporting]) and returns the lines to print."""
+    if k is not None and not (isinstance(k, int) and k >= 1):
+        raise UsageError(f"--k (the number of futures) must be an integer >= 1, got {k!r}")
     ds, how = folder_as_test_set(model, folder, scale=scale, joint_map=joint_map)
-    k = k or model.default_k
+    k = model.default_k if k is None else k
+    check_memory(dataclasses.replace(model.config, eval_k=(k,)), ds.dim, ds.t_his, ds.t_pred, source=f"--k {k}")
     cfg = dataclasses.replace(model.config, eval_k=(k,), action_metrics=False, max_test_windows=None,
                               seed=model.config.seed if seed is None else seed, mm_ground_truth="test", mm_deviation=None)
     prep = experiment.prepare(ds, None, test_only=True)

@@ -27,6 +27,7 @@ import numpy as np
 from jaxmotion.body.fit import calibrate, fit_sequence
 from jaxmotion.body.markersets import MARKER_SPECS
 from jaxmotion.body.skeleton import SkeletonBody, skeleton_body_from_bvh, toy_skeleton
+from jaxmotion.data.plausible import check_positions
 from jaxmotion.formats.atomic import atomic_path, write_text_atomic
 from jaxmotion.formats.bvh import read_bvh
 from jaxmotion.formats.c3d import read_c3d
@@ -35,6 +36,7 @@ from jaxmotion.formats.c3d import read_c3d
 def fit_c3d(path, *, skeleton: str | None = None, stride: int = 1, calib_frames: int = 32, rounds: int = 4) -> dict:
     """Returns a dict with the body, fits, observed points/mask, timings and residual statistics (mm)."""
     rec = read_c3d(path)
+    check_positions(path, rec.points, "marker positions", gaps=True, units=f"POINT:UNITS says {rec.units}")
     names = tuple(n for n in rec.labels if n in MARKER_SPECS)
     if len(names) < 8:
         raise ValueError(f"{path}: only {len(names)} labels have an attachment in MARKER_SPECS: {names}")

@@ -27,6 +27,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from jaxmotion.data.plausible import check_positions
 from jaxmotion.data.units import body_size, file_scales
 from jaxmotion.errors import DataError, UsageError
 from jaxmotion.formats.atomic import savez_atomic
@@ -34,6 +35,7 @@ from jaxmotion.formats.bvh import MAX_JOINTS, Bvh, forward_kinematics, read_bvh
 from jaxmotion.formats.bvh_write import read_end_sites, write_bvh
 from jaxmotion.data.windows import resample  # noqa: F401 (also part of this module's interface)
 from jaxmotion.formats.c3d import read_c3d
+from jaxmotion.formats.npz import read_arrays
 from jaxmotion.tools.joint_maps import match_skeleton
 from jaxmotion.tools.predict_markers import predict_markers
 from jaxmotion.tools.predictor import MotionPredictor
@@ -45,7 +47,7 @@ class Motion:
     """Global joint positions of a file, in metres, with what is needed to write results back onto it."""
 
     path: Path
-    names: tuple[str, ...]
+    names: tuple[str, ...] | None  # None: an npz without names (joints in the model's order)
     positions: np.ndarray  # (T, J, 3) metres
     fps: float | None
     scale: float  # metres per file unit
@@ -70,30 +72,35 @@ def read_motion(path: str | Path, scale: float | None = None) -> Motion:
     if path.suffix.lower() == ".c3d":  # markers, NaN at gaps, for marker models (`predict_markers`)
         rec = read_c3d(path)
         s = {"mm": 1e-3, "cm": 1e-2, "dm": 0.1, "m": 1.0}[rec.units]
-        return _checked(Motion(path, rec.labels, rec.points.astype(np.float64), rec.rate, s, None, None, [f"units: {rec.units} (POINT:UNITS)"]), unique_names=False)
+        pos = check_positions(path, rec.points, "marker positions", gaps=True, units=f"POINT:UNITS says {rec.units}")
+        return _checked(Motion(path, rec.labels, pos.astype(np.float64), rec.rate, s, None, None, [f"units: {rec.units} (POINT:UNITS)"]), unique_names=False)
     if path.suffix.lower() == ".npz":
+        z = read_arrays(path, ("positions", "names", "fps", "scale", "up_axis"), what="clip of joint positions", required=("positions",))
+        names = tuple(str(n) for n in z["names"].reshape(-1)) if "names" in z else None
+        if names is not None and len(names) != (z["positions"].shape[1] if z["positions"].ndim == 3 else -1):
+            raise DataError(path, f"{len(names)} names for 'positions' of shape {z['positions'].shape}")
         try:
-            z = dict(np.load(path, allow_pickle=False))
-        except Exception as e:
-            raise DataError(path, f"cannot read npz ({type(e).__name__}: {e})") from e
-        if "positions" not in z:
-            raise DataError(path, f"needs an array 'positions' (T, J, 3); has {sorted(z)}")
-        pos = np.asarray(z["positions"], np.float64)
-        if pos.ndim != 3 or pos.shape[-1] != 3 or not np.all(np.isfinite(pos)):
-            raise DataError(path, f"'positions' must be a finite (T, J, 3) array, got shape {pos.shape}")
-        names = tuple(str(n) for n in z["names"]) if "names" in z else None
-        if names is not None and len(names) != pos.shape[1]:
-            raise DataError(path, f"{len(names)} names for {pos.shape[1]} joints")
-        try:
-            s = float(z["scale"]) if "scale" in z else (1.0 if scale is None else scale)
-            fps = float(z["fps"]) if "fps" in z else None
-            up = float(z["up_axis"]) if "up_axis" in z else None
+            s = _number(z, "scale") if "scale" in z else (1.0 if scale is None else scale)
+            fps = _number(z, "fps") if "fps" in z else None
+            up = _number(z, "up_axis") if "up_axis" in z else None
         except (TypeError, ValueError) as e:
-            raise DataError(path, f"'scale', 'fps' and 'up_axis' must be single numbers ({e})") from None
+            raise DataError(path, f"'scale', 'fps' and 'up_axis' must be single real numbers ({e})") from None
         if up is not None and up not in (0, 1, 2):
             raise DataError(path, f"'up_axis' must be 0, 1 or 2 (x, y or z), got {up:g}")
-        return _checked(Motion(path, names, pos * _scale(path, s), fps, s, None if up is None else int(up), None, [f"units: {s:g} m per unit"]))
+        pos = z["positions"]
+        if isinstance(pos, np.ndarray) and np.issubdtype(pos.dtype, np.floating):
+            pos = pos.astype(np.float64) * _scale(path, s)
+        pos = check_positions(path, pos, "'positions'", units=f"{s:g} m per unit")
+        return _checked(Motion(path, names, pos.astype(np.float64), fps, s, None if up is None else int(up), None, [f"units: {s:g} m per unit"]))
     raise DataError(path, "expected a .bvh clip, an .npz of joint positions or a .c3d marker file")
+
+
+def _number(z: dict, key: str) -> float:
+    """Returns the single real number stored under `key` (a bool, complex or text value is refused)."""
+    a = z[key]
+    if a.size != 1 or not (np.issubdtype(a.dtype, np.floating) or np.issubdtype(a.dtype, np.integer)):
+        raise ValueError(f"{key!r} is {a.dtype} of shape {a.shape}")
+    return float(a.reshape(-1)[0])
 
 
 def _scale(path: Path, s: float) -> float:
@@ -174,6 +181,8 @@ def predict_file(
             shorter than `t_his` frames at the model's rate.
         jaxmotion.errors.UsageError: `out` is a file, or `frame` is outside the clip.
     """
+    if not str(out).strip():  # Path("") is the current folder
+        raise UsageError("--out is empty; give the folder to write futures.npz, future_NN.bvh and samples.gif into")
     if Path(out).exists() and not Path(out).is_dir():
         raise UsageError(f"--out {out} is a file; give a folder (it receives futures.npz, future_NN.bvh, samples.gif)")
     lay = model.layout
@@ -186,6 +195,10 @@ def predict_file(
     pos = motion.positions
     notes = motion.notes
     shift = 0
+    if motion.bvh is None and motion.up_axis is not None and lay.get("up_axis") is None:
+        # An npz's declared axis is honoured or refused, never dropped (a BVH's Y up is a convention, not a declaration).
+        raise DataError(path, f"'up_axis' is {'xyz'[motion.up_axis]}, but the model records no up axis to turn it onto; "
+                              "remove 'up_axis' from the npz to give the positions in the model's own axes")
     if lay.get("up_axis") is not None and motion.up_axis is not None and motion.up_axis != lay["up_axis"]:
         shift = (lay["up_axis"] - motion.up_axis) % 3
         pos = _roll(pos, shift)

@@ -40,7 +40,7 @@ from tqdm.auto import tqdm
 
 from jaxmotion.train import distributed
 from jaxmotion.train.distributed import data_mesh
-from jaxmotion.errors import CheckpointError
+from jaxmotion.errors import CheckpointError, ConfigError
 from jaxmotion.formats.atomic import write_text_atomic
 
 
@@ -306,7 +306,11 @@ def fit(
             state, metrics = step_fn(state, batch, jax.random.fold_in(key, step))
             done = step + 1
             if done % log_every == 0 or done == num_steps:
-                m = {k: float(v) for k, v in jax.device_get(metrics).items()}
+                try:
+                    m = {k: float(v) for k, v in jax.device_get(metrics).items()}
+                except jax.errors.JaxRuntimeError as e:
+                    _raise_if_out_of_memory(e, workdir)
+                    raise
                 if not math.isfinite(m["loss"]):
                     _save(mngr, ckpt, None, None, wait=True)
                     raise FloatingPointError(
@@ -351,11 +355,19 @@ def _save(mngr: ocp.CheckpointManager, ckpt: Path, step: int | None, state: Trai
     except Exception as e:
         with contextlib.suppress(Exception):  # its background writer would otherwise keep the process alive
             mngr.close()
+        _raise_if_out_of_memory(e, ckpt.parent)  # a step's failed allocation surfaces where the state is first read
         kept = sorted(int(p.name) for p in ckpt.iterdir() if p.name.isdigit()) if ckpt.is_dir() else []
         raise CheckpointError(
             f"{ckpt}: cannot write checkpoint{'' if step is None else f' step {step}'} ({_brief(e)}); "
             f"the checkpoints kept there: steps {kept}"
         ) from e
+
+
+def _raise_if_out_of_memory(e: Exception, stage_dir: Path) -> None:
+    """Raises `ConfigError` when `e` is XLA failing to allocate: the config asks for more memory than there is."""
+    if "RESOURCE_EXHAUSTED: Out of memory" in str(e):
+        raise ConfigError(str(stage_dir), [f"a training step ran out of memory ({_brief(e)}); lower the batch size or the "
+                                           "layer widths (jaxmotion.config.memory_estimate gives a lower bound)"]) from None
 
 
 CHECKSUM = "jaxmotion_checksum.json"  # in each step folder: {"sha256": tree_digest(the saved state)}
