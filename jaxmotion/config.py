@@ -55,8 +55,10 @@ class Config:
     log_every: int = 50
     eval_batch: int = 64
     max_test_windows: int | None = None  # None: every protocol window
-    # Training windows: "windows" (each valid window equally likely) or "sequences" (DLow's release:
-    # a sequence uniformly, then a start). Every measured table used "windows".
+    # Training windows: "windows" (each valid window equally likely), "sequences" (a sequence
+    # uniformly, then a start) or "subjects" (the releases' `sample()`: a subject uniformly, then one
+    # of its sequences, then a start; `jaxmotion.data.windows.TrainSampler`). Every measured Bandai
+    # table used "windows".
     train_sampler: str = "windows"
     # None (protocol), or the averaging of a published code base: "divsamp", "comusion" or "gsps"
     # (`jaxmotion.eval.protocol.DEVIATIONS`, each described there).
@@ -186,7 +188,7 @@ def _unknown_fields(path: Path, namespace: dict) -> list[str]:
     return problems
 
 
-_CHOICES = {"split": ("test", "val"), "train_sampler": ("windows", "sequences"), "mm_deviation": (None, "divsamp", "comusion", "gsps"),
+_CHOICES = {"split": ("test", "val"), "train_sampler": ("windows", "sequences", "subjects"), "mm_deviation": (None, "divsamp", "comusion", "gsps"),
             "mm_ground_truth": (None, "test", "train", "motionmap-test", "motionmap-train"),
             "precision": PRECISIONS}
 # `Config`'s intervals: (field, rule, what the rule asks), checked once the field's type is right.
