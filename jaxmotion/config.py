@@ -246,6 +246,9 @@ def _check_dataclass(obj, prefix: str, num_windows: int | None = None) -> list[s
     return problems
 
 
+_FRAME_BATCHES = {"prior_batch_size"}
+
+
 def _check_value(name: str, field: str, v, num_windows: int | None) -> list[str]:
     if isinstance(v, float) and not math.isfinite(v):
         return [f"{name} must be finite, got {v}"]
@@ -256,7 +259,8 @@ def _check_value(name: str, field: str, v, num_windows: int | None) -> list[str]
     if field.endswith("batch_size"):
         if v < 1:
             return [f"{name} must be >= 1, got {v}"]
-        if num_windows is not None and v > num_windows:
+        # GSPS's pose prior draws single training frames with replacement, so its batch may pass the window count.
+        if num_windows is not None and v > num_windows and field not in _FRAME_BATCHES:
             return [f"{name} {v} is larger than the {num_windows} training windows"]
     if (field == "lr" or field.endswith("_lr")) and not v > 0:
         return [f"{name} must be > 0, got {v}"]

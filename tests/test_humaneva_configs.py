@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from jaxmotion import experiment
-from jaxmotion.config import load_config
+from jaxmotion.config import load_config, validate
 from jaxmotion.data.datasets import load_dataset
 from jaxmotion.methods import get_method
 
@@ -68,6 +68,9 @@ def test_config_loads_and_builds_its_stages_on_a_humaneva_shaped_file(name, tmp_
     ds = load_dataset(fabricate(tmp_path / HUMANEVA_FILE))
     assert (ds.name, ds.t_his, ds.t_pred, ds.fps, ds.dim) == ("humaneva", 15, 60, 60, 42)
     prep = experiment.prepare(ds, train_sampler=cfg.train_sampler)
+    # As `jaxmotion run` checks it against the training windows (GSPS's prior batch of 4,096 single frames
+    # is larger than the file's windows, the real file's 2,595 included).
+    validate(cfg, prep.sampler.num_windows)
     stages = get_method(method).stages(cfg, prep)
     if stage_names is not None:
         assert [s.name for s in stages] == stage_names

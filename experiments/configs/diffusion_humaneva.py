@@ -1,8 +1,8 @@
 # jaxmotion run --config experiments/configs/diffusion_humaneva.py --data /path/to/data_3d_humaneva15.npz --workdir ~/jaxmotion-runs/humaneva/diffusion_s0 --seed 0 [--resume]
 # python experiments/plot_curves.py ~/jaxmotion-runs/humaneva/diffusion_s0
 # The paper's row (HumanMAC, ICCV 2023, Table 1, HumanEva-I, K = 50; arXiv 2302.03665):
-# APD 6.554, ADE 0.209, FDE 0.223, MMADE 0.342, MMFDE 0.320 (written from the paper's table; check
-# against it before quoting).
+# APD 6.554, ADE 0.209, FDE 0.223, MMADE 0.342, MMFDE 0.320. Not checked against the table itself: the
+# stored copies of the paper reachable here showed its text, not Table 1; check before quoting.
 # Release budget: 501 epochs x 781 batches of 64 (50,000 // 64): 391,281 steps, 25.0M windows.
 # Measured here (2-core Intel Xeon, family 6 model 167, AVX-512/AMX, 2.6 GHz; the long run paused):
 # MEASURED_TRAIN s/step: the full budget is HOURS_TOTAL h on this CPU; sampling K = 50 futures of the
