@@ -4,9 +4,10 @@
 # APD 6.554, ADE 0.209, FDE 0.223, MMADE 0.342, MMFDE 0.320. Not checked against the table itself: the
 # stored copies of the paper reachable here showed its text, not Table 1; check before quoting.
 # Release budget: 501 epochs x 781 batches of 64 (50,000 // 64): 391,281 steps, 25.0M windows.
-# Measured here (2-core Intel Xeon, family 6 model 167, AVX-512/AMX, 2.6 GHz; the long run paused):
-# MEASURED_TRAIN s/step: the full budget is HOURS_TOTAL h on this CPU; sampling K = 50 futures of the
-# 188 test windows at 100 DDIM steps: MEASURED_SAMPLE.
+# Measured here (2-core Intel Xeon, family 6 model 167, AVX-512/AMX, 2.6 GHz, the cores shared with another
+# training run, load average 5.5, so upper bounds): 1.08 s/step (steps 2-8 of a tiny-budget copy of this
+# config), 117 h for the full budget on this CPU; K = 50 futures of the 188 test windows took 433 s at 10
+# DDIM steps, so about 72 min at the release's 100.
 """The diffusion predictor on HumanEva-I (15 -> 60 frames at 60 fps, 14 joints) at HumanMAC's release settings.
 
 Read against `cfg/humaneva.yml` and the code of github.com/LinghaoChan/HumanMAC:
