@@ -56,8 +56,10 @@ class Config:
     log_every: int = 50
     eval_batch: int = 64
     max_test_windows: int | None = None  # None: every protocol window
-    # Training windows: "windows" (each valid window equally likely) or "sequences" (DLow's release:
-    # a sequence uniformly, then a start). Every measured table used "windows".
+    # Training windows: "windows" (each valid window equally likely), "sequences" (a sequence
+    # uniformly, then a start) or "subjects" (the releases' `sample()`: a subject uniformly, then one
+    # of its sequences, then a start; `jaxmotion.data.windows.TrainSampler`). Every measured Bandai
+    # table used "windows".
     train_sampler: str = "windows"
     # None (protocol), or the averaging of a published code base: "divsamp", "comusion" or "gsps"
     # (`jaxmotion.eval.protocol.DEVIATIONS`, each described there).
@@ -191,7 +193,7 @@ def _unknown_fields(path: Path, namespace: dict) -> list[str]:
 
 SEED_LIMIT = 2**32  # jax.random.key keeps a seed's low 32 bits: 2**32 would be seed 0 again
 
-_CHOICES = {"split": ("test", "val"), "train_sampler": ("windows", "sequences"), "mm_deviation": (None, "divsamp", "comusion", "gsps"),
+_CHOICES = {"split": ("test", "val"), "train_sampler": ("windows", "sequences", "subjects"), "mm_deviation": (None, "divsamp", "comusion", "gsps"),
             "mm_ground_truth": (None, "test", "train", "motionmap-test", "motionmap-train"),
             "precision": PRECISIONS}
 # `Config`'s intervals: (field, rule, what the rule asks), checked once the field's type is right.
@@ -316,6 +318,9 @@ def _check_dataclass(obj, prefix: str, num_windows: int | None = None) -> list[s
     return problems
 
 
+_FRAME_BATCHES = {"prior_batch_size"}
+
+
 def _check_value(name: str, field: str, v, num_windows: int | None) -> list[str]:
     if isinstance(v, float) and not math.isfinite(v):
         return [f"{name} must be finite, got {v}"]
@@ -326,7 +331,8 @@ def _check_value(name: str, field: str, v, num_windows: int | None) -> list[str]
     if field.endswith("batch_size"):
         if v < 1:
             return [f"{name} must be >= 1, got {v}"]
-        if num_windows is not None and v > num_windows:
+        # GSPS's pose prior draws single training frames with replacement, so its batch may pass the window count.
+        if num_windows is not None and v > num_windows and field not in _FRAME_BATCHES:
             return [f"{name} {v} is larger than the {num_windows} training windows"]
     if (field == "lr" or field.endswith("_lr")) and not v > 0:
         return [f"{name} must be > 0, got {v}"]

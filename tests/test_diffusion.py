@@ -221,3 +221,37 @@ def test_the_method_trains_and_evaluates_from_the_command_line(tmp_path, capsys)
     out = np.load(tmp_path / "pred" / "futures.npz")
     assert out["futures"].shape == (3, 60, 48) and str(out["method"]) == "diffusion"
     assert np.all(np.isfinite(out["futures"])) and len(list((tmp_path / "pred").glob("future_*.bvh"))) == 3
+
+
+def test_test_cond_keep_draws_conditioned_and_unconditioned_samples():
+    # cond_keep = 0: every sample denoised without its condition, i.e. as a model whose condition
+    # embedding is zero; cond_keep = 1 (default): all conditioned; in between, some of each.
+    model = tiny()
+    p = init(model)
+    no_cond = jax.tree_util.tree_map_with_path(
+        lambda path, a: jnp.zeros_like(a) if "cond_embed" in jax.tree_util.keystr(path) else a, p)
+    obs, abar = windows(3, 2)[:, :T_HIS], d.schedule("cosine", 100)
+    run = lambda params, **kw: d.sample(model, params, obs, jax.random.key(4), 6, t_pred=T_PRED, abar=abar,  # noqa: E731
+                                        sampling_steps=10, **kw)
+    with_cond, without = run(p), run(no_cond)
+    assert float(jnp.abs(with_cond - without).max()) > 1e-3
+    np.testing.assert_allclose(run(p, cond_keep=0.0), without, atol=1e-5)
+    half = run(p, cond_keep=0.5)
+    dist = lambda a: jnp.abs(half - a).max(axis=(0, 2, 3))  # noqa: E731  per sample k
+    conditioned = np.asarray(dist(with_cond) < 1e-5)
+    unconditioned = np.asarray(dist(without) < 1e-5)
+    assert np.all(conditioned ^ unconditioned) and conditioned.any() and unconditioned.any()
+
+
+def test_lr_milestones_give_the_release_step_decay():
+    from jaxmotion.methods.diffusion import learning_rate
+
+    step = learning_rate(d.DiffusionConfig(lr=1e-3, num_steps=1000, lr_milestones=(0.15, 0.3), lr_gamma=0.9))
+    assert [float(step(s)) for s in (0, 149, 150, 299, 300, 999)] == pytest.approx(
+        [1e-3, 1e-3, 9e-4, 9e-4, 8.1e-4, 8.1e-4])
+    linear = learning_rate(d.DiffusionConfig(lr=1e-3, num_steps=1000, lr_fix_fraction=0.5))
+    assert float(linear(999)) < 1e-5
+    with pytest.raises(ValueError, match="lr_milestones"):
+        d.DiffusionConfig(lr_milestones=(0.5, 0.2))
+    with pytest.raises(ValueError, match="test_cond_keep"):
+        d.DiffusionConfig(test_cond_keep=1.5)

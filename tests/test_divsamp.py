@@ -277,3 +277,44 @@ def test_test_time_noise_is_independent_per_sample(models):
     eps_i = (z_i - mean) / jnp.exp(0.5 * logvar)
     np.testing.assert_allclose(np.asarray(eps_s), np.asarray(jnp.broadcast_to(eps_s[:, :1], eps_s.shape)), atol=1e-4)
     assert float(jnp.abs(eps_i[:, 0] - eps_i[:, 1]).max()) > 0.1
+
+
+def test_the_release_angle_term_adds_lambda_times_gsps_angle_loss():
+    from jaxmotion.data.datasets import HUMANEVA_JOINT_NAMES, HUMANEVA_PARENTS
+    from jaxmotion.models import gsps
+
+    cvae = divsamp.DivSampCVAE(n_dct=NDCT, hidden=16, nz=NZ, num_residual=1)
+    batch = jnp.asarray(np.random.default_rng(3).normal(size=(4, T_HIS + T_PRED, 42)), jnp.float32)
+    cx = divsamp.condition_nodes(batch[:, :T_HIS], T_PRED, NDCT)
+    v = cvae.init(jax.random.key(0), cx, cx, jax.random.key(1), train=False)
+    roles = gsps.angle_roles(HUMANEVA_JOINT_NAMES, HUMANEVA_PARENTS)
+    bounds = jnp.tile(jnp.array([[-0.2, 0.2]], jnp.float32), (len(gsps.ANGLE_NAMES), 1))  # tight: violated
+    kw = dict(t_his=T_HIS, parents=HUMANEVA_PARENTS, beta=0.1, lambda_v=1.0, lambda_his=1.0, lambda_limb=1.0)
+    base, (m0, _) = divsamp.cvae_loss(cvae, v, batch, jax.random.key(2), **kw)
+    with_angle, (m1, _) = divsamp.cvae_loss(cvae, v, batch, jax.random.key(2), lambda_angle=100.0, angle_bounds=bounds,
+                                            roles=roles, **kw)
+    assert "angle" not in m0 and float(m1["angle"]) > 0
+    np.testing.assert_allclose(float(with_angle - base), 100.0 * float(m1["angle"]), rtol=1e-4)
+
+
+def test_the_expanded_cvae_set_swaps_futures_for_pseudo_ones():
+    from types import SimpleNamespace
+
+    from jaxmotion.data.windows import TrainSampler
+    from jaxmotion.methods.divsamp import cvae_batches
+
+    rng = np.random.default_rng(0)
+    frames = [np.cumsum(rng.normal(size=(60, D)), axis=0).astype(np.float32) * 0.1 for _ in range(3)]
+    prep = SimpleNamespace(dataset=SimpleNamespace(t_his=T_HIS, t_pred=T_PRED), sampler=TrainSampler(frames, T_HIS + T_PRED))
+    cfg = lambda p: DivSampConfig(cvae_batch_size=16, cvae_pseudo_prob=p, mm_candidate_stride=3,  # noqa: E731
+                                  mm_his_threshold=1e9, mm_pred_threshold=0.0)
+    plain = cvae_batches(prep, cfg(0.0))(np.random.default_rng(1))
+    np.testing.assert_array_equal(plain, prep.sampler.sample(np.random.default_rng(1), 16))
+    swapped = cvae_batches(prep, cfg(1.0))(np.random.default_rng(1))
+    np.testing.assert_array_equal(swapped[:, :T_HIS], plain[:, :T_HIS])  # the history is kept
+    pool = np.concatenate([np.stack([f[s:s + T_HIS + T_PRED] for s in range(0, 60 - T_HIS - T_PRED + 1, 3)]) for f in frames])
+    for y in swapped[:, T_HIS:]:  # every future is a candidate's
+        assert np.min(np.abs(pool[:, T_HIS:] - y).max(axis=(1, 2))) == 0.0
+    assert np.mean(np.any(swapped != plain, axis=(1, 2))) > 0.5
+    with pytest.raises(ValueError, match="cvae_pseudo_prob"):
+        DivSampConfig(cvae_pseudo_prob=1.5)

@@ -1,4 +1,4 @@
-"""Training-window samplers: every window equally likely, or DLow's release (a sequence, then a start)."""
+"""Training-window samplers: every window equally likely, a sequence then a start, or the releases' subject-first draw."""
 
 import numpy as np
 import pytest
@@ -34,6 +34,20 @@ def test_sequence_weighting_is_dlows_release():
     assert len(s.frames) == 2
 
 
+def test_subject_weighting_is_the_releases_sample():
+    # Subject A: the short sequence, the long one and one of exactly t_total frames; subject B: one
+    # sequence. A subject is drawn uniformly, then one of its sequences (>= t_total frames), redrawn
+    # when it has exactly t_total: B's gets 1/2 / (1 - 1/6) = 0.6, A's two others 0.2 each.
+    frames = _frames() + [np.full((50, 3), 3.0, np.float32)]
+    s = TrainSampler(frames, T_TOTAL, weighting="subjects", subjects=["A", "A", "A", "B"])
+    src = s.sample(np.random.default_rng(0), 6000)[:, 0, 0]
+    assert not np.any(src == 2.0)
+    for v, share in ((0.0, 0.2), (1.0, 0.2), (3.0, 0.6)):
+        assert np.mean(src == v) == pytest.approx(share, abs=0.02)
+    with pytest.raises(ValueError, match="subject name per sequence"):
+        TrainSampler(frames, T_TOTAL, weighting="subjects")
+
+
 def test_bad_weighting_is_named():
     with pytest.raises(ValueError, match="weighting"):
-        TrainSampler(_frames(), T_TOTAL, weighting="subjects")
+        TrainSampler(_frames(), T_TOTAL, weighting="takes")

@@ -23,6 +23,7 @@ def get_config() -> Config:
                       lambda_recon=2.0),
         ),
         eval_k=(50,),
+        train_sampler="subjects",  # the release draws a subject, then a take, then a start (dataset.py `sample`)
         ckpt_every=500,
         curve_every=500,
     )

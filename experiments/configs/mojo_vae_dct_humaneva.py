@@ -26,6 +26,7 @@ def variant(n_low: int) -> Config:
         method="mojo",
         dataset="data_3d_humaneva15.npz",
         eval_k=(50,),
+        train_sampler="subjects",  # the release draws a subject, then a take, then a start (dataset.py `sample`)
         ckpt_every=500,
         curve_every=500,
         method_config=MojoConfig(

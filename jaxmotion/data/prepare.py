@@ -43,7 +43,8 @@ def prepare(ds: MotionDataset, max_test_windows: int | None = None, train_sample
     """Returns train sampler and test windows ([protocol §4][datasets]: test stride t_his, random train starts).
 
     `train_sampler` weights the training windows (`TrainSampler`): "windows" (each equally likely)
-    or "sequences" (DLow's release: a sequence uniformly, then a start). `test_only`: no training
+    or "sequences" (a sequence uniformly, then a start) or "subjects" (the releases' `sample()`: a
+    subject, then one of its sequences, then a start). `test_only`: no training
     windows are needed (the sampler is None), e.g. to evaluate a trained model on a new folder.
 
     Marker datasets' windows are canonicalised at their first frame ([protocol §5][marker-canonicalisation]).
@@ -51,7 +52,8 @@ def prepare(ds: MotionDataset, max_test_windows: int | None = None, train_sample
     train, train_canon = split_frames(ds, "train")
     test, test_canon = split_frames(ds, "test")
     check_lengths(ds, train, test, train_sampler, test_only)
-    sampler = None if test_only else TrainSampler(train, ds.t_total, train_canon, weighting=train_sampler)
+    subjects = [sq.subject for sq in ds.train] if train_sampler == "subjects" else None
+    sampler = None if test_only else TrainSampler(train, ds.t_total, train_canon, weighting=train_sampler, subjects=subjects)
     windows, seq_index, starts = test_windows(test, ds.t_his, ds.t_pred)
     if test_canon is not None:
         windows = canonicalise_windows(windows, np.stack([test_canon[i][s] for i, s in zip(seq_index, starts)]))
@@ -70,7 +72,7 @@ def check_lengths(
     when no training window (unless `test_only`) or no test window fits in the `(T_i, d)` sequences ([protocol §4][datasets]: test windows need T > t_total)."""
     if train_sampler not in SAMPLER_WEIGHTINGS:
         return  # TrainSampler names the choices
-    need = ds.t_total + (1 if train_sampler == "sequences" else 0)
+    need = ds.t_total + (1 if train_sampler in ("sequences", "subjects") else 0)
     if (test_only or any(len(f) >= need for f in train)) and any(len(f) > ds.t_total for f in test):
         return
     longest = lambda fs: max((len(f) for f in fs), default=0)  # noqa: E731

@@ -74,18 +74,32 @@ class TrainSampler:
     `weighting="windows"` (default): a sequence is chosen with probability proportional to its
     number of valid starts, so every valid window is equally likely. `weighting="sequences"`: DLow's
     release (`sample_iter_action`): a sequence uniformly, then a start in `[0, T - t_total)`, so a
-    sequence of exactly `t_total` frames is never drawn. Uses a numpy Generator seeded explicitly.
+    sequence of exactly `t_total` frames is never drawn. `weighting="subjects"` (needs `subjects`, one
+    name per sequence): the releases' `sample()` (DLow, GSPS, DivSamp, HumanMAC): a subject uniformly,
+    then one of its sequences of at least `t_total` frames uniformly, then a start in `[0, T - t_total)`,
+    drawn again when the sequence has exactly `t_total` frames. On HumanEva-I this draws a third of the
+    windows from Train/S3, whose 11 takes hold 4% of the valid starts. Uses a numpy Generator seeded explicitly.
     With `canon` (one `(T, 4, 3)` array per sequence, marker data) each window is expressed in the
     canonical frame of its first frame.
     """
 
     def __init__(
-        self, frames: list[np.ndarray], t_total: int, canon: list[np.ndarray] | None = None, weighting: str = "windows"
+        self, frames: list[np.ndarray], t_total: int, canon: list[np.ndarray] | None = None, weighting: str = "windows",
+        subjects: list[str] | None = None,
     ):
         if weighting not in SAMPLER_WEIGHTINGS:
             raise ValueError(f"TrainSampler: weighting must be one of {SAMPLER_WEIGHTINGS}, got {weighting!r}")
+        if weighting == "subjects" and (subjects is None or len(subjects) != len(frames)):
+            raise ValueError(f"TrainSampler: weighting 'subjects' needs one subject name per sequence ({len(frames)})")
         # DLow's release draws starts in [0, T - t_total): it needs T > t_total.
         min_len = t_total if weighting == "windows" else t_total + 1
+        weight = np.ones(len(frames))
+        if weighting == "subjects":
+            # A subject, then one of its sequences the loaders keep (>= t_total frames); a draw of one
+            # with exactly t_total frames is drawn again, i.e. the others' weights are renormalised.
+            kept = [sub for f, sub in zip(frames, subjects) if f.shape[0] >= t_total]
+            weight = np.array([1.0 / kept.count(sub) if f.shape[0] >= t_total else 0.0 for f, sub in zip(frames, subjects)])
+        weight = [w for f, w in zip(frames, weight) if f.shape[0] >= min_len]
         if canon is not None:
             if len(canon) != len(frames):
                 raise ValueError(f"TrainSampler: {len(canon)} canonical-frame arrays for {len(frames)} sequences")
@@ -96,7 +110,10 @@ class TrainSampler:
             raise ValueError(f"TrainSampler: no sequence has at least {min_len} frames (t_total = {t_total}, {weighting!r})")
         self.t_total, self.weighting = t_total, weighting
         counts = np.array([f.shape[0] - min_len + 1 for f in self.frames], dtype=np.float64)
-        self.p = counts / counts.sum() if weighting == "windows" else np.full(len(self.frames), 1.0 / len(self.frames))
+        if weighting == "windows":
+            self.p = counts / counts.sum()
+        else:
+            self.p = np.asarray(weight) / np.sum(weight)
         self.num_windows = int(counts.sum())
 
     def sample(self, rng: np.random.Generator, batch_size: int) -> np.ndarray:
@@ -113,7 +130,7 @@ class TrainSampler:
         return out if canon is None else canonicalise_windows(out, canon)
 
 
-SAMPLER_WEIGHTINGS = ("windows", "sequences")
+SAMPLER_WEIGHTINGS = ("windows", "sequences", "subjects")
 
 
 def sequence_frames(seqs: list[Sequence], root: int = 0) -> list[np.ndarray]:

@@ -21,6 +21,13 @@ from jaxmotion.models.diffusion import DiffusionConfig
 from jaxmotion.train.loop import lr_schedule
 
 
+def learning_rate(c: DiffusionConfig) -> optax.Schedule:
+    """Returns the lr schedule: constant then linear decay (`lr_fix_fraction`), or the release's step decay (`lr_milestones`)."""
+    if not c.lr_milestones:
+        return lr_schedule(c.lr, c.num_steps, c.lr_fix_fraction)
+    return optax.piecewise_constant_schedule(c.lr, {max(int(round(m * c.num_steps)), 1): c.lr_gamma for m in c.lr_milestones})
+
+
 def stages(cfg, prep) -> list[Stage]:
     """Returns the one stage: the denoiser trained on `cfg`'s windows, its EMA beside it."""
     ds, c = prep.dataset, METHOD.settings(cfg)
@@ -42,7 +49,7 @@ def stages(cfg, prep) -> list[Stage]:
         Stage(
             name="diffusion",
             init=init,
-            optimizer=optax.chain(optax.adam(lr_schedule(c.lr, c.num_steps, c.lr_fix_fraction)),
+            optimizer=optax.chain(optax.adam(learning_rate(c)),
                                   diffusion.ema_weights(c.ema_decay, c.ema_start)),
             loss=lambda p, _frozen, batch, key: loss(p["model"], batch, key),
             batches=window_batches(prep, c.batch_size),
@@ -60,7 +67,8 @@ def sampler(cfg, ds, params: dict, k: int, sampling_steps: int | None = None):
     diffusion.ddim_timesteps(c.noise_steps, steps)  # a clear error for steps that do not divide the schedule
     ema = params["diffusion"]["ema"]
     return jax.jit(lambda x, key: diffusion.sample(model, ema, x, key, k, t_pred=ds.t_pred, abar=abar,
-                                                   sampling_steps=steps, complete_frames=c.complete_frames))
+                                                   sampling_steps=steps, complete_frames=c.complete_frames,
+                                                   cond_keep=c.test_cond_keep))
 
 
 def predictors(cfg, ds, params: dict, k: int) -> dict:

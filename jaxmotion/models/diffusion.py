@@ -71,6 +71,16 @@ class DiffusionConfig:
     batch_size: int = 64
     num_steps: int = 6000
     lr_fix_fraction: float = 0.5  # constant lr for this fraction of training, then linear decay to 0
+    # The release's step decay instead (`MultiStepLR`): the lr is multiplied by `lr_gamma` at each of these
+    # fractions of training (its epochs 75, 150, 225, 275, 350, 450 of 500: `lr_fix_fraction` is then unused).
+    # Empty (default): the constant-then-linear schedule above.
+    lr_milestones: tuple[float, ...] = ()
+    lr_gamma: float = 0.9
+    # The release's evaluation keeps the condition for a whole pass over the test windows with probability
+    # `mod_test` and drops it otherwise (DCT completion alone then ties the sample to the observation), so
+    # about that fraction of each window's K samples are conditioned. 1.0 (default): every sample is
+    # conditioned. The release's HumanEva-I config: 0.5; Human3.6M: 1.0.
+    test_cond_keep: float = 1.0
 
     def __post_init__(self):
         for name in ("n_dct", "latent", "ff", "num_layers", "num_heads", "noise_steps", "sampling_steps", "batch_size"):
@@ -95,6 +105,12 @@ class DiffusionConfig:
             raise ValueError(f"DiffusionConfig.ema_decay must be in [0, 1), got {self.ema_decay}")
         if self.complete_frames is not None and self.complete_frames < 0:
             raise ValueError(f"DiffusionConfig.complete_frames must be None or >= 0, got {self.complete_frames}")
+        if not 0.0 <= self.test_cond_keep <= 1.0:
+            raise ValueError(f"DiffusionConfig.test_cond_keep must be in [0, 1], got {self.test_cond_keep}")
+        if any(not 0.0 < m < 1.0 for m in self.lr_milestones) or list(self.lr_milestones) != sorted(self.lr_milestones):
+            raise ValueError(f"DiffusionConfig.lr_milestones must be increasing fractions in (0, 1), got {self.lr_milestones}")
+        if not 0.0 < self.lr_gamma <= 1.0:
+            raise ValueError(f"DiffusionConfig.lr_gamma must be in (0, 1], got {self.lr_gamma}")
         if self.num_steps < 0 or self.ema_start < 0:
             raise ValueError(f"DiffusionConfig.num_steps and ema_start must be >= 0, got {self.num_steps}, {self.ema_start}")
 
@@ -335,11 +351,13 @@ def ddim_sample(denoise, x_T: Float[Array, "b n d"], cond: Float[Array, "b n d"]
 
 
 def sample(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.Array, k: int, *, t_pred: int,
-           abar: Float[Array, " T"], sampling_steps: int, complete_frames: int | None = None) -> Float[Array, "b k t_pred d"]:
+           abar: Float[Array, " T"], sampling_steps: int, complete_frames: int | None = None,
+           cond_keep: float = 1.0) -> Float[Array, "b k t_pred d"]:
     """Returns K futures per window: DDIM with DCT completion (`ddim_sample`), vmapped over the K samples.
 
     Sample k draws its start `x_T` from `split(key_k)[0]` and its completion noise from `split(key_k)[1]`,
-    `key_k = split(key, k)[k]`.
+    `key_k = split(key, k)[k]`. `cond_keep < 1` (`DiffusionConfig.test_cond_keep`): sample k is conditioned, for every
+    window of the batch, with probability `cond_keep` (drawn from `split(key_k, 3)[2]`) and denoised unconditioned otherwise.
 
     Args:
         model: the denoiser.
@@ -351,6 +369,7 @@ def sample(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.A
         abar: the `(T,)` cumulative products of `1 - beta` of the training noise schedule.
         sampling_steps: DDIM steps (fewer is faster and less accurate: the Results page plots it).
         complete_frames: observed frames put back at every step (None: all `t_his`; 0: no completion).
+        cond_keep: the probability that a sample is conditioned on `x` (1: always).
 
     Returns:
         `(b, K, t_pred, D)` futures.
@@ -364,11 +383,16 @@ def sample(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.A
     t_seq, t_prev = ddim_timesteps(abar.shape[0], sampling_steps)
     ones = jnp.ones((b,), jnp.float32)
 
-    def denoise(xt, t):
-        return model.apply(params, xt, jnp.full((b,), t), cond, ones)
-
     def one(key_k):
-        k0, k1 = jax.random.split(key_k)
+        if cond_keep < 1.0:
+            k0, k1, k2 = jax.random.split(key_k, 3)
+            keep = ones * (jax.random.uniform(k2) < cond_keep).astype(jnp.float32)
+        else:
+            (k0, k1), keep = jax.random.split(key_k), ones
+
+        def denoise(xt, t):
+            return model.apply(params, xt, jnp.full((b,), t), cond, keep)
+
         x0 = ddim_sample(denoise, jax.random.normal(k0, cond.shape), cond, k1, abar=abar, t_seq=t_seq, t_prev=t_prev,
                          t_total=t_total, mask=mask)
         return idct(x0, t_total)[:, t_his:]

@@ -38,6 +38,7 @@ from jaxmotion.dct import condition_nodes, from_nodes, to_nodes
 from jaxmotion.nn.batch import batch_rows
 from jaxmotion.gumbel import COEFFICIENT_KINDS, sample_coefficients
 from jaxmotion.losses import dlow_diversity, hinge_diversity, kld_normal
+from jaxmotion.models import gsps  # GSPS's joint-angle definitions and loss, for the release's CVAE angle term
 from jaxmotion.body.bones import bone_lengths, bone_matrix, bone_vectors  # noqa: F401 (public here too)
 from jaxmotion.nn.gaussian import reparameterise
 from jaxmotion.nn.gcn import GCLStack, GraphConv
@@ -75,12 +76,29 @@ class DivSampConfig:
     # reconstruction term enters with weight 1, which we keep.
     lambda_his: float = 1.0
     lambda_limb: float = 1000.0  # bone lengths of every frame vs those of the first observed frame
+    # The release's joint-angle term (`t1_angle_weight` 100, `loss_valid_angle_t1` on the predicted future):
+    # GSPS's angle loss (`jaxmotion.models.gsps.angle_loss`) under bounds measured on the training poses
+    # (GSPS's `measure_angle_bounds`, its percentile / margin / frame-count defaults), a computed
+    # `angle_bounds` stage before the CVAE. 0 (default): no angle term, no extra stage.
+    cvae_lambda_angle: float = 0.0
+    angle_percentile: float = 0.1
+    angle_margin: float = 0.05
+    angle_bounds_frames: int = 20000
+    # The release trains the CVAE on an expanded set (`..._ExpandDataset_T1`): a training window that has
+    # pseudo multimodal futures (GSPS's, `jaxmotion.models.gsps.pseudo_futures`: candidates every
+    # `mm_candidate_stride` training frames, last observed pose within `mm_his_threshold` and future at
+    # least `mm_pred_threshold` away, mean per-joint distances) keeps its history and takes one of them,
+    # uniformly, as its future with this probability (the release: 2/3). 0 (default): the windows as drawn.
+    cvae_pseudo_prob: float = 0.0
+    mm_candidate_stride: int = 20  # the release's Human3.6M values (HumanEva-I: every 15 frames, future >= 0.01 m)
+    mm_his_threshold: float = 0.05
+    mm_pred_threshold: float = 0.1
     # Sampler (supp. Table 3).
     sampler_residual: int = 2  # 1 + 2 * 2 = 5 GCL-BN-Tanh layers in N_beta
     num_bases: int = 40  # M
     base_dim: int = 128  # n_b
     nh: int = 64  # hidden width of the two N_gamma MLPs
-    base_tanh: bool = True  # Linear-BN-Tanh to B (the HumanEva-I release drops the Tanh)
+    base_tanh: bool = True  # Linear-BN-Tanh to B (the HumanEva-I code's first commit had no Tanh; the final release keeps it)
     coefficients: str = "gumbel"  # "gumbel" | "uniform" | "gaussian" (ablation, Table 5)
     pi: str = "uniform"  # "uniform" (1/M) | "learned_shared" | "learned_per_sample"
     tau: float = 1.0  # the paper's temperature; the released configs use 0.85
@@ -118,6 +136,15 @@ def check_config(c: DivSampConfig) -> DivSampConfig:
             raise ValueError(f"DivSampConfig.{name} must be >= 1, got {getattr(c, name)}")
     if c.nk < 2:
         raise ValueError(f"DivSampConfig.nk must be >= 2 (the diversity loss needs pairs), got {c.nk}")
+    if c.cvae_lambda_angle < 0:
+        raise ValueError(f"DivSampConfig.cvae_lambda_angle must be >= 0, got {c.cvae_lambda_angle}")
+    if not 0.0 <= c.cvae_pseudo_prob <= 1.0:
+        raise ValueError(f"DivSampConfig.cvae_pseudo_prob must be in [0, 1], got {c.cvae_pseudo_prob}")
+    if c.mm_candidate_stride < 1 or c.angle_bounds_frames < 1:
+        raise ValueError(f"DivSampConfig.mm_candidate_stride and angle_bounds_frames must be >= 1, got "
+                         f"{c.mm_candidate_stride}, {c.angle_bounds_frames}")
+    if not 0.0 <= c.angle_percentile < 50.0:
+        raise ValueError(f"DivSampConfig.angle_percentile must be in [0, 50), got {c.angle_percentile}")
     if c.tau <= 0:
         raise ValueError(f"DivSampConfig.tau must be > 0, got {c.tau}")
     return c
@@ -308,14 +335,17 @@ def sample_divsamp(
 def cvae_loss(
     cvae: DivSampCVAE, variables, batch: Float[ArrayLike, "b t d"], key, *, t_his: int, parents: tuple[int, ...],
     beta: float, lambda_v: float, lambda_his: float, lambda_limb: float,
+    lambda_angle: float = 0.0, angle_bounds=None, roles: dict[str, int] | None = None,
 ):
     """Returns the CVAE objective of the release's `run_cvae.py` and the updated BatchNorm statistics.
 
     loss = ||Y_rec - Y||^2 + lambda_v ||x_{t_his} - y_rec_1||^2 + beta KL(q || N(0, I))
-           + lambda_his mean_t ||X_rec_t - X_t||^2 + lambda_limb mean_t sum_bones (l_t - l_0)^2,
+           + lambda_his mean_t ||X_rec_t - X_t||^2 + lambda_limb mean_t sum_bones (l_t - l_0)^2
+           [+ lambda_angle angle_loss(predicted future frames)],
     squared norms summed over frames and dims and averaged over the batch, l_0 the bone lengths
-    of the first observed frame. (The release also penalises joint angles outside ranges read
-    from a dataset-specific file, `h36m_valid_angle.p`; that term needs data we do not have.)
+    of the first observed frame. The release penalises joint angles outside ranges it reads from a
+    dataset-specific file (`h36m_valid_angle.p`, not distributed); with `lambda_angle > 0` the term is
+    GSPS's `angle_loss` under `angle_bounds` (measured on the training poses) for the joint `roles`.
     """
     t_pred = batch.shape[1] - t_his
     x, y = batch[:, :t_his], batch[:, t_his:]
@@ -331,6 +361,11 @@ def cvae_loss(
     limb = jnp.mean(jnp.sum((bone_lengths(rec, parents) - bone_lengths(batch[:, :1], parents)) ** 2, axis=-1))
     loss = recon + lambda_v * jump + beta * kld + lambda_his * his + lambda_limb * limb
     metrics = {"recon": recon, "jump": jump, "kld": kld, "his": his, "limb": limb}
+    if lambda_angle > 0:
+        future = rec[:, t_his:]
+        ang = gsps.angle_loss(gsps.angle_cosines(future.reshape(-1, future.shape[-1]), roles), angle_bounds)
+        loss = loss + lambda_angle * ang
+        metrics["angle"] = ang
     return loss, (metrics, upd["batch_stats"])
 
 
