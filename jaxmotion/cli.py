@@ -93,6 +93,8 @@ def _parser() -> argparse.ArgumentParser:
                                                          "--data is then a folder of BVH clips, all of them test clips")
             g.add_argument("--joint-map", default=None, metavar="FILE", help='JSON {"model joint": "file joint"} (default: names, else a built-in map)')
             g.add_argument("--k", type=int, default=None, help="number of futures (default: the model's largest K)")
+            g.add_argument("--no-retarget", action="store_true",
+                           help="show the model each clip on its own proportions (default: on the model's skeleton, futures back on the clip's bones)")
         if name == "sample":
             s.add_argument("--window", type=_int_at_least(0), default=0, help="test window index")
             s.add_argument("--k", type=_int_at_least(1), default=None, help="number of futures (default: largest K of the config; 10 with --fix-part)")
@@ -115,6 +117,8 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--joint-map", default=None, metavar="FILE",
                    help='JSON {"model joint": "file joint"} (default: same names, else a built-in map: CMU, Mixamo, LAFAN1, SMPL, Bandai-Namco)')
     s.add_argument("--seed", type=_int_at_least(0), default=0, help="seed of the sampling key")
+    s.add_argument("--no-retarget", action="store_true",
+                   help="show the model the clip on its own proportions (default: on the model's skeleton, futures back on the clip's bones)")
     s.add_argument("--out", required=True, help="output folder: futures.npz, future_NN.bvh, samples.gif")
     s = sub.add_parser("export", help="write a trained run as one inference-only model file (for jaxmotion.load and predict --model)")
     s.add_argument("run_dir", help="a trained work directory (with predictor.json)")
@@ -305,7 +309,8 @@ def _eval_model(args) -> int:
     except ValueError as e:
         raise SystemExit(str(e)) from None
     joint_map = read_joint_map(args.joint_map) if args.joint_map else None
-    lines = evaluate_folder(load(args.model), args.data, workdir, k=args.k, scale=scale, joint_map=joint_map, seed=args.seed)
+    lines = evaluate_folder(load(args.model), args.data, workdir, k=args.k, scale=scale, joint_map=joint_map, seed=args.seed,
+                            retarget=not args.no_retarget)
     print("\n".join(lines))
     return 0
 
@@ -325,7 +330,7 @@ def _predict(args) -> int:
     try:
         joint_map = read_joint_map(args.joint_map) if args.joint_map else None
         lines = predict_file(load(model), clip, args.out, frame=args.frame, k=args.k, method=args.method,
-                             seed=args.seed, scale=args.scale, joint_map=joint_map)
+                             seed=args.seed, scale=args.scale, joint_map=joint_map, retarget=not args.no_retarget)
     except USER_ERRORS as e:  # the user's file or run: the message says it all
         return _report(e, "jaxmotion predict")
     print("\n".join(lines))

@@ -59,6 +59,37 @@ def frame_parents(parents: tuple[int, ...]) -> tuple[int, ...]:
     return tuple(p - 1 for p in parents[1:])
 
 
+def with_bone_lengths(
+    frames: Float[ArrayLike, "*s d"], lengths: Float[ArrayLike, "*t b"], parents: tuple[int, ...], *,
+    borrow_direction: bool = False,
+) -> Float[Array, "*o d"]:
+    """Returns `frames` rebuilt parent to child from the root at the origin, every bone keeping its direction in
+    `frames` and taking its length from `lengths` (`(..., J - 1)`, bone i ends at joint i + 1), broadcast over leading axes.
+
+    A bone of zero length in `frames` has no direction: it stays at zero length, or with `borrow_direction`
+    takes the direction of its first child bone that has one (a skeleton that puts the clavicle or the
+    neck at its parent's joint, onto one that gives them a length).
+    """
+    fp = frame_parents(parents)
+    frames, lengths = jnp.asarray(frames), jnp.asarray(lengths, jnp.result_type(frames.dtype, jnp.float32))
+    if lengths.shape[-1] != len(fp):
+        raise ValueError(f"with_bone_lengths: {lengths.shape[-1]} bone lengths for a skeleton of {len(parents)} joints ({len(fp)} bones)")
+    bones = bone_vectors(frames, parents)
+    norms = jnp.linalg.norm(bones, axis=-1, keepdims=True)
+    directions = [bones[..., j, :] / jnp.maximum(norms[..., j, :], 1e-12) for j in range(len(fp))]
+    if borrow_direction:
+        for j in reversed(range(len(fp))):  # children come after their parents: theirs are final when j is reached
+            child = next((c for c, p in enumerate(fp) if p == j), None)
+            if child is not None:
+                directions[j] = jnp.where(norms[..., j, :] > 1e-6, directions[j], directions[child])
+    shape = jnp.broadcast_shapes(bones.shape[:-2], lengths.shape[:-1]) + (3,)
+    out: list = []
+    for j, p in enumerate(fp):
+        base = out[p] if p >= 0 else jnp.zeros(shape, frames.dtype)
+        out.append(jnp.broadcast_to(base + lengths[..., j, None] * directions[j], shape))
+    return jnp.stack(out, axis=-2).reshape(shape[:-1] + (-1,)).astype(frames.dtype)
+
+
 def motion_transfer(
     source: Float[Array, "*s d"], target: Float[Array, "*t d"], parents: tuple[int, ...]
 ) -> Float[Array, "*o d"]:
@@ -68,15 +99,5 @@ def motion_transfer(
     has in `target`; joints are rebuilt parent to child from the root at the origin. `parents` is
     the skeleton's (root first, dropped from the frame vectors).
     """
-    fp = frame_parents(parents)
-    bones_src, bones_tgt = bone_vectors(source, parents), bone_vectors(target, parents)
-    shape = jnp.broadcast_shapes(bones_src.shape[:-2], bones_tgt.shape[:-2]) + (3,)
-    out: list = []
-    for j, p in enumerate(fp):
-        v_src, v_tgt = bones_src[..., j, :], bones_tgt[..., j, :]
-        norm = jnp.linalg.norm(v_src, axis=-1, keepdims=True)
-        direction = v_src / jnp.maximum(norm, 1e-12)
-        length = jnp.linalg.norm(v_tgt, axis=-1, keepdims=True)
-        base = out[p] if p >= 0 else jnp.zeros(shape, source.dtype)
-        out.append(jnp.broadcast_to(base + length * direction, shape))
-    return jnp.stack(out, axis=-2).reshape(shape[:-1] + (-1,))
+    frame_parents(parents)  # the parents' order is checked before any bone is measured
+    return with_bone_lengths(source, bone_lengths(target, parents), parents)

@@ -146,7 +146,7 @@ class MotionPredictor:
             name=self.manifest["dataset"]["name"], skeleton=self.skeleton, fps=lay["fps"], t_his=lay["t_his"],
             t_pred=lay["t_pred"], mm_threshold=lay["mm_threshold"], train=[], test=[], info=info,
         )
-        self._fns: dict[int, dict] = {}
+        self._fns: dict[tuple[int, bool], dict] = {}
 
     @property
     def t_his(self) -> int:
@@ -164,14 +164,37 @@ class MotionPredictor:
     def default_k(self) -> int:
         return max(self.config.eval_k)
 
-    def predictors(self, k: int) -> dict:
-        """Returns the method's jitted predictors at `k` by name (cached)."""
-        if k not in self._fns:
+    @property
+    def bone_lengths(self) -> np.ndarray | None:
+        """Returns the `(J - 1,)` bone lengths of the model's skeleton (the training frames' medians, m; bone i ends at
+        joint i + 1), or None for a marker model or a run whose manifest has none."""
+        b = self.manifest.get("bone_lengths")
+        return None if b is None or self.layout["frames"] != "root_relative" else np.asarray(b[1:], np.float32)
+
+    @property
+    def facing(self) -> tuple[float, int, int, int] | None:
+        """Returns `(degrees, left hip, right hip, up axis)`: the training data's most common facing
+        (`manifest.facing_angle`), or None where the manifest has none."""
+        f, up = self.manifest.get("facing"), self.layout.get("up_axis")
+        if f is None or up is None:
+            return None
+        names = self.skeleton.names
+        return float(f["degrees"]), names.index(f["left"]), names.index(f["right"]), int(up)
+
+    def predictors(self, k: int, retarget: bool = False) -> dict:
+        """Returns the method's jitted predictors at `k` by name (cached); `retarget`: each on other proportions (`retargeted`)."""
+        if (k, retarget) not in self._fns:
             try:
-                self._fns[k] = self.method.predictors(self.config, self.dataset, self.params, k)
+                fns = self.method.predictors(self.config, self.dataset, self.params, k)
             except KeyError as e:
                 raise CheckpointError(f"{self.run_dir}: stage {e.args[0]!r} has no checkpoint; train it first") from None
-        return self._fns[k]
+            if retarget:
+                if self.bone_lengths is None:
+                    raise UsageError(f"{self.run_dir}: the model has no skeleton to retarget onto (a marker model, or a run "
+                                     "trained before predictor.json held bone lengths)")
+                fns = {name: retargeted(fn, self.bone_lengths, self.skeleton.parents, self.facing) for name, fn in fns.items()}
+            self._fns[(k, retarget)] = fns
+        return self._fns[(k, retarget)]
 
     @property
     def methods(self) -> list[str]:
@@ -183,11 +206,15 @@ class MotionPredictor:
         fns = self.predictors(k or self.default_k)
         return self.config.method if self.config.method in fns else list(fns)[-1]
 
-    def predict(self, x, k: int | None = None, key: jax.Array | None = None, method: str | None = None) -> np.ndarray:
+    def predict(
+        self, x, k: int | None = None, key: jax.Array | None = None, method: str | None = None, *, retarget: bool = False,
+    ) -> np.ndarray:
         """Returns `(K, t_pred, D)` futures for `x` `(t_his, D)`, or `(b, K, t_pred, D)` for `(b, t_his, D)`.
 
         `x` is observed frames in `layout` (metres, root-relative, root dropped); `method` defaults to the
         run's own (`methods` lists the others), `k` to the config's largest K, `key` to `key(0)`.
+        `retarget=True` for a body of other proportions than the training data's (`retargeted`): the model
+        sees `x` on its own skeleton, and the futures come back on the bones of `x`'s last frame.
         """
         k = self.default_k if k is None else k
         x = np.asarray(x, np.float32)
@@ -199,7 +226,7 @@ class MotionPredictor:
             raise ValueError("predict: x holds NaN or inf")
         if k < 1:
             raise UsageError(f"predict: k (the number of futures) must be >= 1, got {k}")
-        fns = self.predictors(k)
+        fns = self.predictors(k, retarget)
         method = method or self.main_method(k)
         if method not in fns:
             raise UsageError(
@@ -213,6 +240,47 @@ class MotionPredictor:
                 "or the input is far outside what it was trained on); nothing was written"
             )
         return out[0] if single else out
+
+
+def retargeted(fn, lengths: np.ndarray, parents: tuple[int, ...], facing: tuple[float, int, int, int] | None = None):
+    """Returns `fn` (a predictor, `(b, t_his, D), key -> (b, K, t_pred, D)`) for bodies of other proportions, jitted.
+
+    The observed frames are put on the model's skeleton (every bone the direction it has in the input and
+    the length `lengths`, the training data's; a bone of zero length borrows its child's direction,
+    `bones.with_bone_lengths`) and, with `facing` (`MotionPredictor.facing`), turned about the up axis so
+    that the last observed frame faces the way the training data mostly does, before `fn` sees them. The
+    futures are turned back and put on the bones of each window's last observed frame. A model trained on
+    one set of actors otherwise reads other proportions as a pose, and answers on its own actors'
+    proportions: the first predicted frame then jumps away from the last observed one.
+    """
+    from jaxmotion.body.bones import bone_lengths, with_bone_lengths
+
+    lengths = jnp.asarray(lengths, jnp.float32)
+
+    def turn(frames, angle):  # (b, ..., D) turned by `angle` (b,) radians about the up axis
+        if facing is None:
+            return frames
+        up = facing[3]
+        a_axis, b_axis = (up + 1) % 3, (up + 2) % 3
+        j = frames.reshape(frames.shape[:-1] + (-1, 3))
+        c, s = (f(angle).reshape((-1,) + (1,) * (j.ndim - 2)) for f in (jnp.cos, jnp.sin))
+        a, b = j[..., a_axis], j[..., b_axis]
+        j = j.at[..., a_axis].set(a * c - b * s).at[..., b_axis].set(a * s + b * c)
+        return j.reshape(frames.shape)
+
+    def hip_angle(last):  # (b, D) -> (b,) radians, as `manifest.facing_angle` measures it on joints
+        joints = jnp.concatenate([jnp.zeros(last.shape[:-1] + (1, 3)), last.reshape(last.shape[:-1] + (-1, 3))], axis=-2)
+        v = joints[..., facing[2], :] - joints[..., facing[1], :]
+        return jnp.arctan2(v[..., (facing[3] + 2) % 3], v[..., (facing[3] + 1) % 3])
+
+    @jax.jit
+    def predict(x, key):
+        own = bone_lengths(x[:, -1], parents)  # (b, J - 1)
+        turned = jnp.radians(facing[0]) - hip_angle(x[:, -1]) if facing is not None else jnp.zeros(x.shape[0])
+        futures = fn(turn(with_bone_lengths(x, lengths, parents, borrow_direction=True), turned), key)
+        return with_bone_lengths(turn(futures, -turned), own[:, None, None], parents)
+
+    return predict
 
 
 def load(run_dir: str | Path, stages: tuple[str, ...] | None = None) -> MotionPredictor:

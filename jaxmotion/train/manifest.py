@@ -2,7 +2,8 @@
 
 `write_manifest` writes it when a run starts (`experiment.train`): the config, the skeleton (joint
 names, parents, median bone lengths), the frame layout (joints kept, root dropped, root-relative or
-canonical global frames, metres, fps, t_his / t_pred) and the dataset it came from.
+canonical global frames, metres, fps, t_his / t_pred), the training data's most common facing and the dataset
+it came from.
 `jaxmotion.tools.predictor` reads it (`load`, `run_config`).
 """
 
@@ -54,6 +55,33 @@ def bone_lengths(ds: MotionDataset) -> list[float] | None:
     return [round(float(v), 5) for v in out]
 
 
+def hip_pair(names, parents) -> tuple[int, int] | None:
+    """Returns the `(left, right)` joint indices of the hips (a left/right pair of the root's children, by name), or None."""
+    from jaxmotion.data.augment import left_right_pairs
+
+    return next(((a, b) for a, b in left_right_pairs(names) if parents[a] == 0 and parents[b] == 0), None)
+
+
+def facing_angle(joints: np.ndarray, hips: tuple[int, int], up_axis: int) -> np.ndarray:
+    """Returns the facing of `(..., J, 3)` poses in degrees: the angle about the up axis of the left-to-right hip
+    vector, measured from the next axis after the up one towards the one after that (y up: from z towards x)."""
+    v = joints[..., hips[1], :] - joints[..., hips[0], :]
+    return np.degrees(np.arctan2(v[..., (up_axis + 2) % 3], v[..., (up_axis + 1) % 3]))
+
+
+def facing(ds: MotionDataset) -> dict | None:
+    """Returns the training frames' most common facing (`facing_angle`, the peak of a 10-degree histogram) and the hip
+    joints it is measured on, or None (marker frames, no training data, no named hips, no up axis)."""
+    hips = hip_pair(ds.skeleton.names, ds.skeleton.parents)
+    up = ds.info.get("up_axis")
+    if ds.info.get("frames") == "global" or not ds.train or hips is None or up is None:
+        return None
+    angles = np.concatenate([facing_angle(s.positions[::10], hips, up) for s in ds.train])
+    counts, edges = np.histogram(angles, bins=36, range=(-180, 180))
+    peak = int(np.argmax(counts))
+    return {"degrees": round(float(edges[peak] + 5), 1), "left": ds.skeleton.names[hips[0]], "right": ds.skeleton.names[hips[1]]}
+
+
 def write_manifest(cfg: Config, ds: MotionDataset, workdir: str | Path, data: str | None = None) -> Path:
     """Writes `workdir/predictor.json` (module docstring) and returns its path."""
     workdir = Path(workdir)
@@ -64,6 +92,7 @@ def write_manifest(cfg: Config, ds: MotionDataset, workdir: str | Path, data: st
         "dataset": {"name": ds.name, "source": _absolute(data or ds.info.get("source") or cfg.dataset), "options": dict(cfg.data_options)},
         "layout": layout(ds),
         "bone_lengths": bone_lengths(ds),
+        "facing": facing(ds),
         "config": to_dict(cfg),
     }
     path = workdir / MANIFEST
