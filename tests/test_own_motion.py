@@ -201,14 +201,17 @@ def test_shipped_model_predicts_on_the_cmu_clips(clip, tmp_path, capsys):
 def test_eval_of_the_shipped_model_on_a_fabricated_folder(tmp_path, capsys):
     humanoid_bvh("lafan1", tmp_path / "clips" / "walk_a.bvh", fps=60.0, frames=400)
     humanoid_bvh("lafan1", tmp_path / "clips" / "walk_b.bvh", fps=60.0, frames=300, seed=1, unit=1.0)
+    humanoid_bvh("lafan1", tmp_path / "clips" / "short.bvh", fps=60.0, frames=100, seed=2)  # 50 frames at 30 fps: no window
     assert main(["eval", "--model", "bandai", "--data", str(tmp_path / "clips"), "--workdir", str(tmp_path / "w"), "--k", "10"]) == 0
     printed = capsys.readouterr().out
-    assert "2 clips, all test" in printed and "files at 60 fps" in printed
+    assert "3 clips, all test" in printed and "files at 60 fps" in printed
+    assert "skipped: 1 clip(s) not longer than t_his + t_pred = 75 frames: short.bvh" in printed
     records = json.loads((tmp_path / "w" / "metrics.json").read_text())
     # 400 and 300 frames at 60 fps -> 200 and 150 at 30; test windows of 75 frames every 15 (T > 75 + start): 9 + 5.
     assert {r["method"] for r in records} == {"cvae", "zero_velocity"} and all(r["n_windows"] == 14 and r["K"] == 10 for r in records)
     m = {r["method"]: r["metrics"] for r in records}
     assert all(np.isfinite(v["ADE"]) and v["ADE"] > 0 for v in m.values()) and m["cvae"]["APD"] > 0
+    assert all(np.isfinite(v["FFE"]) and v["FFE"] > 0 for v in m.values()) and all("retargeted onto the model" in r["dataset"] for r in records)
     assert not (tmp_path / "w" / "predictor.json").exists()
 
 
@@ -250,3 +253,53 @@ def test_predict_refuses_a_clip_whose_units_make_no_person(tmp_path, capsys):
     assert main(["predict", "--model", "bandai", str(clip), "--out", str(tmp_path / "o")]) == 2
     assert "would fit: " in capsys.readouterr().err and not (tmp_path / "o").exists()
     assert main(["predict", "--model", "bandai", str(clip), "--scale", "0.056444", "--k", "2", "--out", str(tmp_path / "o")]) == 0
+
+
+# ----------------------------------------------------------------------------------------------
+# What predict, eval and view say
+
+
+def test_predict_unit_error_names_the_clip_and_its_one_option(tmp_path, capsys):
+    clip = humanoid_bvh("bandai", tmp_path / "tiny_units.bvh", unit=0.056444, frames=100)
+    assert main(["predict", "--model", "bandai", str(clip), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert f"{clip}: units" in err and "--scale NUMBER" in err
+    assert "PATTERN" not in err and "1 of 1 files" not in err  # predict takes one clip and one number
+
+
+def test_a_body_under_a_metre_is_refused_and_no_such_unit_offered(tmp_path, capsys):
+    from jaxmotion.data.units import body_size
+
+    clip = humanoid_bvh("bandai", tmp_path / "c.bvh", unit=0.01, frames=100)
+    size = body_size(read_bvh(clip))  # file units
+    small = 0.57 / size  # metres per unit that make the body 0.57 m across
+    assert main(["predict", "--model", "bandai", str(clip), "--scale", f"{small:.6g}", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "= 0.57 m (not a person)" in err and not (tmp_path / "o").exists()
+    offered = [float(m) for m in re.findall(r"\(\d[\d.e-]*: (\d+\.\d+) m\)", err)]
+    assert offered and min(offered) >= PLAUSIBLE_SIZE[0] >= 1.0
+
+
+def test_folder_with_another_hierarchy_names_the_joint(tmp_path):
+    humanoid_bvh("bandai", tmp_path / "clips" / "a.bvh", frames=80)
+    humanoid_bvh("bandai", tmp_path / "clips" / "b.bvh", frames=80, reparent={"Shoulder_L": "Neck"})
+    with pytest.raises(DataError, match=r"b\.bvh: skeleton differs from .*a\.bvh's: joint 'Shoulder_L' hangs from 'Neck' here, "
+                                        r"from 'Chest' there"):
+        load_bvh_folder(tmp_path / "clips")
+
+
+def test_predict_counts_input_frames_prints_one_wrote_line_and_view_says_what_the_folder_is(tmp_path, capsys):
+    clip = humanoid_bvh("bandai", tmp_path / "c.bvh", fps=60.0, frames=300)
+    assert main(["predict", "--model", "bandai", str(clip), "--frame", "100", "--k", "3", "--out", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out.splitlines()
+    z = np.load(tmp_path / "o" / "futures.npz")
+    assert int(z["end_frame"]) == 100 and int(z["end_frame_model"]) == 50  # --frame counts input frames, and so does the npz
+    assert "observed: input frames 72..100" in out  # model frames 36..50 at 30 fps
+    assert not any("has no predictor" in s for s in out)
+    assert [s for s in out if s.startswith("wrote")] == [f"wrote {tmp_path / 'o'}/: futures.npz, future_00.bvh .. future_02.bvh "
+                                                          "(3 BVH files), samples.gif"]
+    assert any(s.startswith("note: first predicted frame: joints ") for s in out)
+    pytest.importorskip("plotly")
+    assert main(["view", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "the output of `jaxmotion predict`" in err and "jaxmotion eval" not in err

@@ -21,8 +21,9 @@ import numpy as np
 from jaxmotion.errors import DataError
 from jaxmotion.formats.bvh import CMU_SCALE, Bvh, forward_kinematics, guess_scale, is_ground_skeleton
 
-# The largest joint-to-joint distance of a person (an infant to an adult with raised hands; the lower bound as `guess_scale`'s).
-PLAUSIBLE_SIZE = (0.5, 2.6)
+# The largest joint-to-joint distance of a person (a child to an adult with raised hands): a body under 1 m
+# across is read in the wrong unit far more often than it is a toddler's.
+PLAUSIBLE_SIZE = (1.0, 2.6)
 MAX_SIZE_RATIO = 2.0
 # Units a file may be in, offered in the error when its guess fails.
 KNOWN_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "CMU/ASF unit": CMU_SCALE, "foot": 0.3048}
@@ -74,8 +75,12 @@ def _number(v: str) -> float:
     return s
 
 
-def file_scales(bvhs: dict[Path, Bvh], scale: float | dict[str, float] | None, root: Path) -> dict[Path, float]:
-    """Returns metres per unit of every file (module docstring), or raises one `DataError` listing every file."""
+def file_scales(bvhs: dict[Path, Bvh], scale: float | dict[str, float] | None, root: Path, *, one_file: bool = False) -> dict[Path, float]:
+    """Returns metres per unit of every file (module docstring), or raises one `DataError` listing every file.
+
+    `one_file`: `bvhs` is one clip given on its own (`jaxmotion predict`): the error names the file and
+    its one `--scale NUMBER`.
+    """
     rows, scales = [], {}
     for path, bvh in bvhs.items():
         rel = path.relative_to(root) if path.is_relative_to(root) else Path(path.name)
@@ -94,6 +99,10 @@ def file_scales(bvhs: dict[Path, Bvh], scale: float | dict[str, float] | None, r
     lo, hi = PLAUSIBLE_SIZE
     bad = [r for r in rows if r[2] is None or not lo <= r[1] * r[2] <= hi]
     spread = max(sizes) / min(sizes) if sizes and min(sizes) > 0 else 1.0
+    if one_file and bad:
+        path, (rel, size, s, how) = next(iter(bvhs)), rows[0]
+        raise DataError(path, f"units: no unit makes its body a person's ({lo:g}-{hi:g} m across): {_row(Path(path.name), size, s, how)}. "
+                              "Fix: --scale NUMBER (metres per file unit)")
     if bad or spread > MAX_SIZE_RATIO:
         why = (f"{len(bad)} of {len(rows)} files have no unit that makes their body a person's ({lo:g}-{hi:g} m)" if bad
                else f"the bodies differ in size by a factor {spread:.1f} (more than {MAX_SIZE_RATIO:g})")

@@ -99,6 +99,12 @@ class MotionPredictor:
 
         self.run_dir = Path(run_dir)
         path = self.run_dir / MANIFEST
+        if not path.is_file() and (self.run_dir / "futures.npz").is_file():
+            raise FileNotFoundError(
+                f"{self.run_dir}: the output of `jaxmotion predict` (futures.npz, future_NN.bvh, samples.gif), not a trained run; "
+                "its futures are in futures.npz and samples.gif, and a model is given to view / predict / eval as the "
+                "run folder or model file that predict read"
+            )
         if not path.is_file():
             raise FileNotFoundError(
                 f"{path}: not found; {self.run_dir} is not a trained run (jaxmotion run / train write it), "
