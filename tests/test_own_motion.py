@@ -303,3 +303,33 @@ def test_predict_counts_input_frames_prints_one_wrote_line_and_view_says_what_th
     assert main(["view", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "the output of `jaxmotion predict`" in err and "jaxmotion eval" not in err
+
+
+def test_far_from_training_names_proportions_speed_and_pose_range():
+    from jaxmotion.train.manifest import far_from_training
+
+    manifest = {"layout": {"joints": ["Root", "Spine", "Head"], "parents": [-1, 0, 1]}, "bone_lengths": [0.0, 0.5, 0.4],
+                "motion_ranges": {"speed_p99": 1.0, "reach_p99": 1.0}}
+    still = np.tile(np.array([[0, 0, 0], [0, 0.5, 0], [0, 0.9, 0]], float), (15, 1, 1))
+    assert far_from_training(manifest, still, 30.0) == []
+    assert far_from_training(manifest, still * 1.3, 30.0) == []  # a taller body is not far
+    tall = still * [1.0, 2.0, 1.0]  # bones 1.0 and 0.8 m: twice the training data's; the head 1.8 m from the root
+    got = far_from_training(manifest, tall, 30.0)
+    assert got[0] == "proportions: Spine 1.00 m (training data 0.50 m), Head 0.80 m (training data 0.40 m)"
+    assert got[1].startswith("pose range: a joint 1.80 m from the root") and len(got) == 2
+    fast = still + np.array([[0.0, 0, 0], [0.1, 0, 0]])[np.arange(15) % 2][:, None]  # 0.1 m per frame along x at 30 fps: 3 m/s
+    assert far_from_training(manifest, fast, 30.0) == ["speed: joints move 3.00 m/s on average (training data: 99% of frames under 1.00 m/s)"]
+
+
+def test_the_shipped_example_clip_reads_and_predicts(tmp_path, capsys):
+    from jaxmotion.examples import cmu_clip
+    from jaxmotion.tools.predict_file import read_motion
+
+    clip = cmu_clip()
+    m = read_motion(clip)
+    assert m.positions.shape == (300, 31, 3) and abs(m.fps - 30) < 0.01 and abs(m.scale - 0.056444) < 1e-9
+    assert 1.0 < np.ptp(m.positions[0], axis=0).max() < 2.0  # a person, in metres
+    assert main(["predict", "--model", "bandai", str(clip), "--k", "2", "--out", str(tmp_path / "o")]) == 0
+    assert np.load(tmp_path / "o" / "futures.npz")["futures"].shape[:2] == (2, 60)
+    with pytest.raises(FileNotFoundError, match="not a shipped example clip"):
+        cmu_clip("nope")

@@ -38,6 +38,7 @@ from jaxmotion.tools.joint_maps import match_skeleton
 from jaxmotion.tools.predict_markers import predict_markers
 from jaxmotion.tools.predictor import MotionPredictor
 from jaxmotion.tools.retarget import bvh_from_positions, fit_bvh
+from jaxmotion.train.manifest import far_from_training
 
 
 @dataclasses.dataclass
@@ -199,6 +200,7 @@ def predict_file(
     joints = pos[:, idx]  # (n, J, 3) metres, model joint order
     frames = (joints[:, 1:] - joints[:, :1]).reshape(n, -1).astype(np.float32)
     x = frames[end + 1 - t_his : end + 1]
+    far = far_from_training(model.manifest, joints[end + 1 - t_his : end + 1], fps)
     gt = frames[end + 1 : end + 1 + t_pred] if end + t_pred < n else None
     k = model.default_k if k is None else k
     method = method or model.main_method(k)
@@ -278,6 +280,7 @@ def predict_file(
         f"model: {model.run_dir} ({model.manifest['dataset']['name']}, {model.config.method}; {len(lay['joints'])} joints, "
         f"{t_his} -> {t_pred} frames at {fps:g} fps)",
         *[f"note: {s}" for s in notes],
+        *[f"warning: far from the model's training data: {s}" for s in far],
         f"observed: input frames {first_in}..{end_in}" + ("" if gt is not None else " (no ground truth after it)"),
         f"predicted: K={k} futures with {method!r}; BVH files hold the {t_his} observed frames, then {t_pred} predicted, "
         "the root held at its last observed position",

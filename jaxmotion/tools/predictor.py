@@ -312,32 +312,57 @@ def load(run_dir: str | Path, stages: tuple[str, ...] | None = None) -> MotionPr
 # Exported models: one file with the parameters (no optimiser state) and what predictor.json holds.
 
 EXPORT_FORMAT = "jaxmotion-model"
-# Shipped models: name -> file in jaxmotion/pretrained/ (its README states the data, the command and the licence).
-PRETRAINED = {"bandai": "bandai.msgpack"}
+PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "pretrained"
+
+
+def shipped_models() -> dict:
+    """Returns `jaxmotion/pretrained/models.json`: every shipped model (file, method, data, licence, size, metrics), the
+    default's name and the rule that chose it. Its model cards (`pretrained/README.md`) are generated from it."""
+    return json.loads((PRETRAINED_DIR / "models.json").read_text())
+
+
+def _pretrained() -> dict[str, str]:
+    reg = shipped_models()
+    files = {m["name"]: m["file"] for m in reg["models"]}
+    return {"bandai": files[reg["default"]], **files}
+
+
+# Shipped models: name -> file in jaxmotion/pretrained/; "bandai" is the default one (`shipped_models`).
+PRETRAINED = _pretrained()
 
 
 def pretrained_path(name: str) -> Path:
     """Returns the file of the shipped model `name` (`PRETRAINED`)."""
     if name not in PRETRAINED:
         raise FileNotFoundError(f"{name}: not a shipped model (shipped: {sorted(PRETRAINED)})")
-    path = Path(__file__).resolve().parent.parent / "pretrained" / PRETRAINED[name]
+    path = PRETRAINED_DIR / PRETRAINED[name]
     if not path.is_file():
         raise FileNotFoundError(f"{path}: the shipped model {name!r} is missing from this installation")
     return path
 
 
-def export(run_dir: str | Path, out: str | Path, stages: tuple[str, ...] | None = None) -> Path:
+def export(
+    run_dir: str | Path, out: str | Path, stages: tuple[str, ...] | None = None, *, float16: bool = False,
+    manifest: dict | None = None,
+) -> Path:
     """Writes the trained run at `run_dir` as one inference-only file (msgpack: predictor.json's contents, the parameters
-    of every stage, or of `stages`, and their shapes) and returns its path; `load` and `jaxmotion predict` accept it."""
+    of every stage, or of `stages`, and their shapes) and returns its path; `load` and `jaxmotion predict` accept it.
+
+    `float16`: float32 parameters are stored as float16 (half the file; `read_model` turns them back into
+    float32). `manifest`: entries added to the run's predictor.json contents (e.g. a `facing` measured after training).
+    """
     from flax import serialization
 
     from jaxmotion.train.runner import param_shapes
 
     model = MotionPredictor(run_dir, stages)
     params = {stage: jax.tree.map(np.asarray, p) for stage, p in model.params.items()}
+    shapes = {stage: param_shapes(p) for stage, p in params.items()}
+    if float16:
+        params = jax.tree.map(lambda v: v.astype(np.float16) if v.dtype == np.float32 else v, params)
     payload = {
-        "format": EXPORT_FORMAT, "version": VERSION, "predictor": json.dumps(model.manifest),
-        "shapes": json.dumps({stage: param_shapes(p) for stage, p in params.items()}), "params": params,
+        "format": EXPORT_FORMAT, "version": VERSION, "predictor": json.dumps({**model.manifest, **(manifest or {})}),
+        "shapes": json.dumps(shapes), "params": params, "storage": "float16" if float16 else "as trained",
     }
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -361,6 +386,8 @@ def read_model(path: str | Path) -> MotionPredictor:
     if not isinstance(payload, dict) or payload.get("format") != EXPORT_FORMAT:
         raise CheckpointError(f"{path}: not an exported jaxmotion model (jaxmotion export RUN --out FILE writes one)")
     params = {stage: jax.tree.map(jnp.asarray, p) for stage, p in payload["params"].items()}
+    if payload.get("storage") == "float16":  # stored at half size (`export(float16=True)`), computed in float32
+        params = jax.tree.map(lambda v: v.astype(jnp.float32) if v.dtype == jnp.float16 else v, params)
     if json.loads(payload["shapes"]) != {stage: param_shapes(p) for stage, p in params.items()}:
         raise CheckpointError(f"{path}: its parameters do not match the shapes it lists (damaged file?)")
     return MotionPredictor.from_parts(json.loads(payload["predictor"]), params, path)

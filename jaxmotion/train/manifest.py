@@ -82,6 +82,40 @@ def facing(ds: MotionDataset) -> dict | None:
     return {"degrees": round(float(edges[peak] + 5), 1), "left": ds.skeleton.names[hips[0]], "right": ds.skeleton.names[hips[1]]}
 
 
+def motion_ranges(ds: MotionDataset) -> dict | None:
+    """Returns the training frames' 99th percentiles of joint speed (m/s, the mean over joints of a frame) and of a
+    joint's distance from the root (m, the largest of a frame), or None (marker frames, no training data)."""
+    if ds.info.get("frames") == "global" or not ds.train:
+        return None
+    speed = np.concatenate([np.linalg.norm(np.diff(s.positions, axis=0), axis=-1).mean(-1) * ds.fps for s in ds.train])
+    reach = np.concatenate([np.linalg.norm(s.positions[::10, 1:] - s.positions[::10, :1], axis=-1).max(-1) for s in ds.train])
+    return {"speed_p99": round(float(np.percentile(speed, 99)), 4), "reach_p99": round(float(np.percentile(reach, 99)), 4)}
+
+
+def far_from_training(manifest: dict, window: np.ndarray, fps: float) -> list[str]:
+    """Returns what makes `window` (`(T, J, 3)` metres, the model's joints) far from the model's training data: bones
+    more than 1.5 x longer or shorter than its median, a mean joint speed above 1.5 x its 99th percentile, a joint
+    further from the root than 1.25 x its 99th percentile; empty when nothing is."""
+    out = []
+    names, parents = manifest["layout"]["joints"], manifest["layout"]["parents"]
+    if manifest.get("bone_lengths"):
+        want = np.asarray(manifest["bone_lengths"])
+        have = np.array([np.linalg.norm(window[-1, j] - window[-1, p]) if p >= 0 else 0.0 for j, p in enumerate(parents)])
+        odd = [j for j in range(1, len(names)) if want[j] > 0.02 and not 1 / 1.5 <= have[j] / want[j] <= 1.5]
+        if odd:
+            out.append("proportions: " + ", ".join(f"{names[j]} {have[j]:.2f} m (training data {want[j]:.2f} m)" for j in odd[:4])
+                       + (f" and {len(odd) - 4} more bones" if len(odd) > 4 else ""))
+    ranges = manifest.get("motion_ranges")
+    if ranges and len(window) > 1:
+        speed = float(np.linalg.norm(np.diff(window, axis=0), axis=-1).mean() * fps)
+        if speed > 1.5 * ranges["speed_p99"]:
+            out.append(f"speed: joints move {speed:.2f} m/s on average (training data: 99% of frames under {ranges['speed_p99']:.2f} m/s)")
+        reach = float(np.linalg.norm(window[:, 1:] - window[:, :1], axis=-1).max())
+        if reach > 1.25 * ranges["reach_p99"]:
+            out.append(f"pose range: a joint {reach:.2f} m from the root (training data: 99% of frames within {ranges['reach_p99']:.2f} m)")
+    return out
+
+
 def write_manifest(cfg: Config, ds: MotionDataset, workdir: str | Path, data: str | None = None) -> Path:
     """Writes `workdir/predictor.json` (module docstring) and returns its path."""
     workdir = Path(workdir)
@@ -93,6 +127,7 @@ def write_manifest(cfg: Config, ds: MotionDataset, workdir: str | Path, data: st
         "layout": layout(ds),
         "bone_lengths": bone_lengths(ds),
         "facing": facing(ds),
+        "motion_ranges": motion_ranges(ds),
         "config": to_dict(cfg),
     }
     path = workdir / MANIFEST
