@@ -52,32 +52,32 @@ def _metrics(records: list[dict]) -> dict[str, dict[str, float]]:
     return {r["method"]: {k: round(float(r["metrics"][k]), 4) for k in KEEP if k in r["metrics"]} for r in records}
 
 
-def _split(model: MotionPredictor, split: str):
+def _split(model: MotionPredictor, split: str, max_windows: int | None = None):
     """Returns `(the evaluation config, the Bandai-Namco-2 dataset of `split` in the model's config)`."""
-    cfg = dataclasses.replace(model.config, split=split, eval_k=(50,), action_metrics=False, max_test_windows=None)
+    cfg = dataclasses.replace(model.config, split=split, eval_k=(50,), action_metrics=False, max_test_windows=max_windows)
     return cfg, experiment.load_data(cfg, str(BANDAI))
 
 
 def _bandai(model: MotionPredictor, cfg, ds, work: Path) -> dict:
     """Returns the metrics by predictor on the dataset's test windows (the validation split's held-back windows, or the test's)."""
-    prep = experiment.prepare(ds, None, cfg.train_sampler)
+    prep = experiment.prepare(ds, cfg.max_test_windows, cfg.train_sampler)
     records = eval_loop.evaluate(cfg, folder_method(model, retarget=False), prep, model.params, work / cfg.split, f"bandai2 {cfg.split}")
     return {"n_windows": len(prep.windows), **_metrics(records)}
 
 
-def measure(name: str, run: Path) -> dict:
+def measure(name: str, run: Path, max_windows: int | None = None) -> dict:
     """Exports `run` as `bandai_NAME.msgpack` and returns its record (module docstring)."""
     t0 = time.perf_counter()
     work = Path(tempfile.mkdtemp(prefix=f"shipped_{name}_"))
     trained = load(run)
-    cfg, val = _split(trained, "val")
+    cfg, val = _split(trained, "val", max_windows)
     face = facing(val)  # of the training clips the run was trained on
     out = export(run, PRETRAINED_DIR / f"bandai_{name}.msgpack", float16=True, manifest={"facing": face, "motion_ranges": motion_ranges(val)})
     model = load(out)
     x, key = experiment.prepare(val, 64).x, jax.random.key(0)
     drift = max(float(np.abs(model.predict(x, 50, key, m) - trained.predict(x, 50, key, m)).max()) for m in model.methods)
     validation = _bandai(model, cfg, val, work)
-    test = _bandai(model, *_split(model, "test"), work)
+    test = _bandai(model, *_split(model, "test", max_windows), work)
     cmu = {}
     for retarget in (True, False):
         evaluate_folder(model, CMU, work / f"cmu_{retarget}", k=50, retarget=retarget)
@@ -167,11 +167,13 @@ def main(argv=None) -> None:
     s = sub.add_parser("measure")
     s.add_argument("name")
     s.add_argument("run", type=Path)
+    s.add_argument("--max-windows", type=int, default=None, help="a quick check of this script: that many windows (not for the cards)")
     sub.add_parser("ship")
     args = p.parse_args(argv)
     results = json.loads(RESULTS.read_text()) if RESULTS.is_file() else {}
     if args.command == "measure":
-        results[args.name] = measure(args.name, args.run.expanduser())
+        results[args.name] = measure(args.name, args.run.expanduser(), args.max_windows)
+        results[args.name]["max_windows"] = args.max_windows
         RESULTS.write_text(json.dumps(results, indent=1) + "\n")
         print(json.dumps(results[args.name], indent=1))
     else:

@@ -118,3 +118,19 @@ def test_facing_is_the_training_datas_most_common_hip_direction():
     angles = np.concatenate([facing_angle(s.positions, hips, ds.info["up_axis"]) for s in ds.train])
     assert f["left"] == ds.skeleton.names[hips[0]] and f["right"] == ds.skeleton.names[hips[1]]
     assert ds.skeleton.names[hips[0]] == "LHip" and np.mean(np.abs((angles - f["degrees"] + 180) % 360 - 180) <= 10) > 0.2
+
+
+def test_inertialized_futures_continue_the_observed_velocity_then_become_the_models():
+    from jaxmotion.tools.predictor import inertialized
+
+    rng = np.random.default_rng(4)
+    x = rng.normal(size=(2, 15, 6)).astype(np.float32)
+    f = rng.normal(size=(2, 3, 20, 6)).astype(np.float32)
+    out = np.asarray(inertialized(jnp.asarray(f), jnp.asarray(x), 8))
+    np.testing.assert_allclose(out[:, :, 0], np.broadcast_to((2 * x[:, -1] - x[:, -2])[:, None], (2, 3, 6)), atol=1e-5)
+    np.testing.assert_array_equal(out[:, :, 8:], f[:, :, 8:])  # from the blend's end on: the model's own futures
+    # In between, every future moves by one shift that shrinks: the futures' differences are the model's.
+    np.testing.assert_allclose(out[:, 1:, 1:8] - out[:, :1, 1:8], f[:, 1:, 1:8] - f[:, :1, 1:8], atol=1e-5)
+    shift = np.linalg.norm(out - f, axis=-1)[0, 0, :8]
+    assert np.all(np.diff(shift / shift[0]) < 0)
+    np.testing.assert_array_equal(np.asarray(inertialized(jnp.asarray(f), jnp.asarray(x), 0)), f)

@@ -61,27 +61,42 @@ def frame_parents(parents: tuple[int, ...]) -> tuple[int, ...]:
 
 def with_bone_lengths(
     frames: Float[ArrayLike, "*s d"], lengths: Float[ArrayLike, "*t b"], parents: tuple[int, ...], *,
-    borrow_direction: bool = False,
+    borrow_direction: bool = False, span_zero_bones: bool = False,
 ) -> Float[Array, "*o d"]:
     """Returns `frames` rebuilt parent to child from the root at the origin, every bone keeping its direction in
     `frames` and taking its length from `lengths` (`(..., J - 1)`, bone i ends at joint i + 1), broadcast over leading axes.
 
-    A bone of zero length in `frames` has no direction: it stays at zero length, or with `borrow_direction`
-    takes the direction of its first child bone that has one (a skeleton that puts the clavicle or the
-    neck at its parent's joint, onto one that gives them a length).
+    Two skeletons may split a limb differently (one puts the clavicle or the neck at its parent's joint, with
+    zero length, the other gives it a length). `borrow_direction`: a bone of zero length in `frames` (no
+    direction) takes the direction of its first child bone, instead of staying at zero length.
+    `span_zero_bones`: a bone whose parent bone has zero length in `lengths` points from the nearest joint
+    above it that a bone of non-zero length ends at (or the root), so that it spans the bones it replaces.
     """
     fp = frame_parents(parents)
     frames, lengths = jnp.asarray(frames), jnp.asarray(lengths, jnp.result_type(frames.dtype, jnp.float32))
     if lengths.shape[-1] != len(fp):
         raise ValueError(f"with_bone_lengths: {lengths.shape[-1]} bone lengths for a skeleton of {len(parents)} joints ({len(fp)} bones)")
     bones = bone_vectors(frames, parents)
-    norms = jnp.linalg.norm(bones, axis=-1, keepdims=True)
-    directions = [bones[..., j, :] / jnp.maximum(norms[..., j, :], 1e-12) for j in range(len(fp))]
+    unit = lambda v: v / jnp.maximum(jnp.linalg.norm(v, axis=-1, keepdims=True), 1e-12)  # noqa: E731
+    directions = [unit(bones[..., j, :]) for j in range(len(fp))]
     if borrow_direction:
+        norms = jnp.linalg.norm(bones, axis=-1, keepdims=True)
         for j in reversed(range(len(fp))):  # children come after their parents: theirs are final when j is reached
             child = next((c for c, p in enumerate(fp) if p == j), None)
             if child is not None:
                 directions[j] = jnp.where(norms[..., j, :] > 1e-6, directions[j], directions[child])
+    if span_zero_bones:
+        joints = frames.reshape(frames.shape[:-1] + (-1, 3))
+        at = lambda a: joints[..., a, :] if a >= 0 else jnp.zeros_like(joints[..., 0, :])  # noqa: E731  (-1: the root)
+        for j in range(len(fp)):
+            chain, a = [], fp[j]
+            while a >= 0:  # the joints above j, nearest first; the root (-1) last
+                chain.append(a)
+                a = fp[a]
+            d = unit(joints[..., j, :] - at(-1))
+            for a in reversed(chain):  # the nearest ancestor whose own bone has a length wins
+                d = jnp.where(lengths[..., a, None] > 1e-6, unit(joints[..., j, :] - at(a)), d)
+            directions[j] = d
     shape = jnp.broadcast_shapes(bones.shape[:-2], lengths.shape[:-1]) + (3,)
     out: list = []
     for j, p in enumerate(fp):

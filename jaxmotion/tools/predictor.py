@@ -198,7 +198,10 @@ class MotionPredictor:
                 if self.bone_lengths is None:
                     raise UsageError(f"{self.run_dir}: the model has no skeleton to retarget onto (a marker model, or a run "
                                      "trained before predictor.json held bone lengths)")
-                fns = {name: retargeted(fn, self.bone_lengths, self.skeleton.parents, self.facing) for name, fn in fns.items()}
+                blend = round(RETARGET_BLEND_S * self.layout["fps"])
+                # A baseline (zero-velocity) is kept as it is: it is what the blended futures are measured against.
+                fns = {name: retargeted(fn, self.bone_lengths, self.skeleton.parents, self.facing,
+                                        0 if name in self.method.deterministic else blend) for name, fn in fns.items()}
             self._fns[(k, retarget)] = fns
         return self._fns[(k, retarget)]
 
@@ -248,14 +251,35 @@ class MotionPredictor:
         return out[0] if single else out
 
 
-def retargeted(fn, lengths: np.ndarray, parents: tuple[int, ...], facing: tuple[float, int, int, int] | None = None):
+# How long a retargeted future takes to blend from the observed motion into the model's own (`inertialized`):
+# chosen on the validation windows of Bandai-Namco-2 among 0, 0.27, 0.5, 1, 1.5 and 2 s
+# (experiments/results/retarget_blend.md).
+RETARGET_BLEND_S = 1.0
+
+
+def inertialized(futures: jax.Array, x: jax.Array, frames: int) -> jax.Array:
+    """Returns `futures` `(b, K, t_pred, D)` shifted so that their first frame continues `x` `(b, t_his, D)` at its
+    last velocity, the shift fading out over `frames` frames (a half cosine), as inertialization blends an
+    animation transition; `frames = 0` returns `futures` unchanged."""
+    if frames <= 0:
+        return futures
+    target = 2 * x[:, -1] - x[:, -2] if x.shape[1] > 1 else x[:, -1]  # (b, D): the next frame at constant velocity
+    t = jnp.arange(futures.shape[2], dtype=futures.dtype)
+    w = jnp.where(t < frames, 0.5 * (1 + jnp.cos(jnp.pi * t / frames)), 0.0)  # 1 at the first frame, 0 from `frames` on
+    return futures + w[None, None, :, None] * (target[:, None, None] - futures[:, :, :1])
+
+
+def retargeted(fn, lengths: np.ndarray, parents: tuple[int, ...], facing: tuple[float, int, int, int] | None = None,
+               blend: int = 0):
     """Returns `fn` (a predictor, `(b, t_his, D), key -> (b, K, t_pred, D)`) for bodies of other proportions, jitted.
 
-    The observed frames are put on the model's skeleton (every bone the direction it has in the input and
+    `blend`: the futures start from the observed motion and blend into the model's own over that many frames
+    (`inertialized`). The observed frames are put on the model's skeleton (every bone the direction it has in the input and
     the length `lengths`, the training data's; a bone of zero length borrows its child's direction,
     `bones.with_bone_lengths`) and, with `facing` (`MotionPredictor.facing`), turned about the up axis so
     that the last observed frame faces the way the training data mostly does, before `fn` sees them. The
-    futures are turned back and put on the bones of each window's last observed frame. A model trained on
+    futures are turned back and put on the bones of each window's last observed frame (a bone after one of zero
+    length there spans the model's bones it replaces). A model trained on
     one set of actors otherwise reads other proportions as a pose, and answers on its own actors'
     proportions: the first predicted frame then jumps away from the last observed one.
     """
@@ -283,8 +307,9 @@ def retargeted(fn, lengths: np.ndarray, parents: tuple[int, ...], facing: tuple[
     def predict(x, key):
         own = bone_lengths(x[:, -1], parents)  # (b, J - 1)
         turned = jnp.radians(facing[0]) - hip_angle(x[:, -1]) if facing is not None else jnp.zeros(x.shape[0])
-        futures = fn(turn(with_bone_lengths(x, lengths, parents, borrow_direction=True), turned), key)
-        return with_bone_lengths(turn(futures, -turned), own[:, None, None], parents)
+        seen = turn(with_bone_lengths(x, lengths, parents, borrow_direction=True), turned)
+        futures = inertialized(fn(seen, key), seen, blend)
+        return with_bone_lengths(turn(futures, -turned), own[:, None, None], parents, span_zero_bones=True)
 
     return predict
 
