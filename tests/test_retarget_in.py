@@ -129,8 +129,10 @@ def test_inertialized_futures_continue_the_observed_velocity_then_become_the_mod
     out = np.asarray(inertialized(jnp.asarray(f), jnp.asarray(x), 8))
     np.testing.assert_allclose(out[:, :, 0], np.broadcast_to((2 * x[:, -1] - x[:, -2])[:, None], (2, 3, 6)), atol=1e-5)
     np.testing.assert_array_equal(out[:, :, 8:], f[:, :, 8:])  # from the blend's end on: the model's own futures
-    # In between, every future moves by one shift that shrinks: the futures' differences are the model's.
-    np.testing.assert_allclose(out[:, 1:, 1:8] - out[:, :1, 1:8], f[:, 1:, 1:8] - f[:, :1, 1:8], atol=1e-5)
-    shift = np.linalg.norm(out - f, axis=-1)[0, 0, :8]
-    assert np.all(np.diff(shift / shift[0]) < 0)
+    # In between, each future moves by its first frame's shift, scaled by a weight that falls from 1 to 0.
+    shift = out - f
+    w = shift[:, :, :8, 0] / shift[:, :, :1, 0]
+    np.testing.assert_allclose(shift[:, :, :8], w[..., None] * shift[:, :, :1], atol=1e-5)
+    np.testing.assert_allclose(w, np.broadcast_to(w[0, 0], w.shape), atol=1e-5)
+    assert w[0, 0, 0] == 1 and np.all(np.diff(w[0, 0]) < 0) and w[0, 0, -1] > 0
     np.testing.assert_array_equal(np.asarray(inertialized(jnp.asarray(f), jnp.asarray(x), 0)), f)
