@@ -285,7 +285,7 @@ def test_predicted_bvh_npz_and_gif_show_one_motion_on_the_input_skeleton(run, tm
     pos[:, 1:] += 0.3 * (pos[:, 1:] - pos[:, [0]])  # a body 1.3 x the model's: its bone lengths differ from the training data's
     clip = write_bvh(tmp_path / "big.bvh", bvh_from_positions(ds.skeleton.names, ds.skeleton.parents, pos, ds.fps))
     lines = predict_file(jaxmotion.load(moved), clip, tmp_path / "o", k=3)
-    assert any("put on the input's bone lengths" in s for s in lines)
+    assert any("futures fitted to the input's skeleton" in s for s in lines)
     z = np.load(tmp_path / "o" / "futures.npz")
     src = read_bvh(clip)
     par = np.array(src.parents)
@@ -296,9 +296,14 @@ def test_predicted_bvh_npz_and_gif_show_one_motion_on_the_input_skeleton(run, tm
         assert np.abs(p[:15] - z["observed_joints"]).max() < 1e-3
         np.testing.assert_allclose(np.linalg.norm(p[:, 1:] - p[:, par[1:]], axis=-1), np.broadcast_to(want, (75, len(want))), rtol=1e-5)
         np.testing.assert_allclose(z["futures"][i], (z["joints"][i][:, 1:] - z["joints"][i][:, :1]).reshape(60, -1), atol=1e-5)
-    # The raw output stays beside it, and it is another motion: the model's bodies have the training data's size.
-    raw = z["futures_raw"].reshape(3, 60, -1, 3)
-    assert raw.shape == (3, 60, ds.skeleton.num_joints - 1, 3) and np.abs(z["futures_raw"] - z["futures"]).max() > 0.01
+    # The model's output stays beside it, already on the input's bones (retargeted back from the model's skeleton);
+    # with --no-retarget it is on the training data's, another body.
+    raw = z["joints_raw"]
+    assert raw.shape == (3, 60, ds.skeleton.num_joints, 3)
+    np.testing.assert_allclose(np.linalg.norm(raw[:, :, 1:] - raw[:, :, par[1:]], axis=-1), np.broadcast_to(want, (3, 60, len(want))), rtol=1e-4)
+    predict_file(jaxmotion.load(moved), clip, tmp_path / "n", k=3, retarget=False)
+    raw = np.load(tmp_path / "n" / "futures.npz")["joints_raw"]
+    assert np.abs(np.linalg.norm(raw[:, :, 1:] - raw[:, :, par[1:]], axis=-1) - want).max() > 0.05
 
 
 def test_exported_model_predicts_like_its_run(run, tmp_path, capsys):
