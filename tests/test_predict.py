@@ -323,3 +323,29 @@ def test_exported_model_predicts_like_its_run(run, tmp_path, capsys):
     bad.write_bytes((tmp_path / "m.msgpack").read_bytes()[:5000])
     with pytest.raises(CheckpointError, match="not an exported jaxmotion model"):
         jaxmotion.load(bad)
+
+
+def test_float16_export_is_half_the_size_and_predicts_alike(run, tmp_path):
+    _, _, prep, _, moved = run
+    assert main(["export", str(moved), "--out", str(tmp_path / "m32.msgpack")]) == 0
+    assert main(["export", str(moved), "--out", str(tmp_path / "m16.msgpack"), "--float16"]) == 0
+    s32, s16 = (tmp_path / "m32.msgpack").stat().st_size, (tmp_path / "m16.msgpack").stat().st_size
+    assert s16 < 0.6 * s32
+    a, b = jaxmotion.load(tmp_path / "m32.msgpack"), jaxmotion.load(tmp_path / "m16.msgpack")
+    assert all(v.dtype == np.float32 for p in b.params.values() for v in jax.tree.leaves(p) if np.issubdtype(v.dtype, np.floating))
+    key = jax.random.key(1)
+    got, want = b.predict(prep.x[:2], 4, key, "cvae"), a.predict(prep.x[:2], 4, key, "cvae")
+    assert 0 < np.abs(got - want).max() < 1e-2  # rounded weights: close, not equal
+
+
+def test_models_command_lists_every_shipped_model(capsys):
+    from jaxmotion.tools.predictor import PRETRAINED, shipped_models
+
+    assert main(["models"]) == 0
+    out = capsys.readouterr().out
+    reg = shipped_models()
+    for m in reg["models"]:
+        assert any(line.startswith(m["name"] + " ") for line in out.splitlines())
+        assert (Path(jaxmotion.__file__).parent / "pretrained" / m["file"]).is_file()
+    assert f"default: {reg['default']}, chosen by {reg['rule']}" in out and PRETRAINED["bandai"] == PRETRAINED[reg["default"]]
+    assert "licence: CC BY-NC 4.0" in out
