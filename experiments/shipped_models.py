@@ -11,6 +11,9 @@ on), on the protocol's test windows (reported, never used to choose) and on ../s
 (every clip a test clip, retargeted onto the model, beside zero-velocity and without retargeting);
 ~3-5 min per model on two CPU cores. The record goes to `experiments/results/shipped_models.json`.
 
+`blend RUN METHOD` sweeps the length of the blend from the observed motion into a retargeted model's
+futures (`predictor.RETARGET_BLEND_S`, chosen on validation windows: experiments/results/retarget_blend.md).
+
 `ship` chooses the default (`jaxmotion predict --model bandai`) by the rule `RULE` and writes
 `jaxmotion/pretrained/models.json` (read by `jaxmotion models` and `jaxmotion.load`) and the model
 cards `jaxmotion/pretrained/README.md`, both generated from the results file.
@@ -162,6 +165,30 @@ def cards(reg: dict, models: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def blend_sweep(run: Path, method: str, frames: tuple[int, ...], max_windows: int = 400) -> list[str]:
+    """Returns one line per blend length (`predictor.inertialized`): ADE / FDE / FFE of the retargeted predictor on
+    `max_windows` evenly spaced validation windows of Bandai-Namco-2 (what `RETARGET_BLEND_S` is chosen on) and on
+    the CMU clips (shown, not used to choose)."""
+    from jaxmotion.eval.metrics import ade, fde, first_frame_error
+    from jaxmotion.tools.evaluate_folder import folder_as_test_set
+    from jaxmotion.tools.predictor import retargeted
+
+    model = load(run)
+    cfg, val = _split(model, "val", max_windows)
+    face = facing(val)
+    hips = (face["degrees"], model.skeleton.names.index(face["left"]), model.skeleton.names.index(face["right"]), model.layout["up_axis"])
+    sets = {"val": experiment.prepare(val, max_windows), "cmu-bvh": experiment.prepare(folder_as_test_set(model, CMU)[0], None, test_only=True)}
+    fn, lines = model.predictors(50)[method], []
+    for b in frames:
+        g, row = retargeted(fn, model.bone_lengths, model.skeleton.parents, hips, b), [f"blend {b:2d}"]
+        for name, p in sets.items():
+            f = np.concatenate([np.asarray(g(p.x[i : i + 64], jax.random.fold_in(jax.random.key(0), i))) for i in range(0, len(p.x), 64)])
+            row.append(f"{name} ADE {float(ade(f, p.y).mean()):.4f} FDE {float(fde(f, p.y).mean()):.4f} "
+                       f"FFE {float(first_frame_error(f, p.y).mean()):.4f}")
+        lines.append(" | ".join(row))
+    return lines
+
+
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
@@ -170,7 +197,14 @@ def main(argv=None) -> None:
     s.add_argument("run", type=Path)
     s.add_argument("--max-windows", type=int, default=None, help="a quick check of this script: that many windows (not for the cards)")
     sub.add_parser("ship")
+    s = sub.add_parser("blend")
+    s.add_argument("run", type=Path)
+    s.add_argument("method")
+    s.add_argument("--frames", default="0,8,15,30,45,60")
     args = p.parse_args(argv)
+    if args.command == "blend":
+        print("\n".join(blend_sweep(args.run.expanduser(), args.method, tuple(int(f) for f in args.frames.split(",")))), flush=True)
+        return
     results = json.loads(RESULTS.read_text()) if RESULTS.is_file() else {}
     if args.command == "measure":
         results[args.name] = measure(args.name, args.run.expanduser(), args.max_windows)
