@@ -97,10 +97,12 @@ def measure(name: str, run: Path, max_windows: int | None = None) -> dict:
 
 def ship(results: dict) -> tuple[dict, str]:
     """Returns `(models.json, README.md)`: the default chosen by `RULE`, and the cards."""
-    models = sorted(results.values(), key=lambda m: m["name"])
+    models = sorted(({**m, "name": f"bandai-{m['name']}", "stages": sorted(load(PRETRAINED_DIR / m["file"]).params)}
+                     for m in results.values()), key=lambda m: m["name"])
     best = min(models, key=lambda m: m["validation"][m["predictor"]]["ADE"])
     reg = {"default": best["name"], "rule": RULE, "licence": LICENCE, "data": DATA, "models": [
-        {k: m[k] for k in ("name", "file", "method", "predictor", "config", "seed", "size_bytes", "storage", "float16_max_drift_m")}
+        {k: m[k] for k in ("name", "file", "method", "predictor", "stages", "config", "seed", "size_bytes", "storage",
+                           "float16_max_drift_m")}
         | {"metrics": {"validation": m["validation"][m["predictor"]], "test": m["test"][m["predictor"]],
                        "cmu": m["cmu"]["retargeted"][m["predictor"]], "cmu_zero_velocity": m["cmu"]["retargeted"]["zero_velocity"]}}
         for m in models]}
@@ -142,11 +144,13 @@ def cards(reg: dict, models: list[dict]) -> str:
             "",
             f"## {m['name']}{' (default: `bandai`)' if m['name'] == reg['default'] else ''}",
             "",
-            f"`{m['file']}`, {m['size_bytes'] / 1e6:.1f} MB; method {m['method']} (predictor `{p}`), seed {m['seed']}; "
+            f"`{m['file']}`, {m['size_bytes'] / 1e6:.1f} MB; method {m['method']}, trained stages {', '.join(m['stages'])} "
+            f"(predictor `{p}`), seed {m['seed']}; "
             f"float16 storage moves its futures by at most {1000 * m['float16_max_drift_m']:.3f} mm. Made with",
             "",
             f"    jaxmotion train --config {m['config']} --data ../shared/data/bandai-namco-2 --workdir RUN --seed {m['seed']}",
-            f"    python experiments/shipped_models.py measure {m['name']} RUN",
+            f"    python experiments/shipped_models.py measure {m['name'].removeprefix('bandai-')} RUN --max-windows {m['max_windows']}"
+            if m.get("max_windows") else f"    python experiments/shipped_models.py measure {m['name'].removeprefix('bandai-')} RUN",
             "",
             "| windows | " + " | ".join(KEEP) + " |",
             "| --- |" + " --- |" * len(KEEP),

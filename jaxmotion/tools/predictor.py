@@ -211,9 +211,10 @@ class MotionPredictor:
         return sorted(self.predictors(self.default_k))
 
     def main_method(self, k: int | None = None) -> str:
-        """Returns the method's own predictor name (else the last one listed)."""
+        """Returns the method's own predictor name (else the last one listed that is not a baseline such as zero-velocity)."""
         fns = self.predictors(k or self.default_k)
-        return self.config.method if self.config.method in fns else list(fns)[-1]
+        learned = [n for n in fns if n not in self.method.deterministic]
+        return self.config.method if self.config.method in fns else (learned or list(fns))[-1]
 
     def predict(
         self, x, k: int | None = None, key: jax.Array | None = None, method: str | None = None, *, retarget: bool = False,
