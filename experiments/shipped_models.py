@@ -68,14 +68,14 @@ def _bandai(model: MotionPredictor, cfg, ds, work: Path) -> dict:
     return {"n_windows": len(prep.windows), **_metrics(records)}
 
 
-def measure(name: str, run: Path, max_windows: int | None = None) -> dict:
+def measure(name: str, run: Path, max_windows: int | None = None, stages: tuple[str, ...] | None = None) -> dict:
     """Exports `run` as `bandai_NAME.msgpack` and returns its record (module docstring)."""
     t0 = time.perf_counter()
     work = Path(tempfile.mkdtemp(prefix=f"shipped_{name}_"))
-    trained = load(run)
+    trained = load(run, stages)
     cfg, val = _split(trained, "val", max_windows)
     face = facing(val)  # of the training clips the run was trained on
-    out = export(run, PRETRAINED_DIR / f"bandai_{name}.msgpack", float16=True, manifest={"facing": face, "motion_ranges": motion_ranges(val)})
+    out = export(run, PRETRAINED_DIR / f"bandai_{name}.msgpack", stages, float16=True, manifest={"facing": face, "motion_ranges": motion_ranges(val)})
     model = load(out)
     x, key = experiment.prepare(val, 64).x, jax.random.key(0)
     drift = max(float(np.abs(model.predict(x, 50, key, m) - trained.predict(x, 50, key, m)).max()) for m in model.methods)
@@ -149,8 +149,8 @@ def cards(reg: dict, models: list[dict]) -> str:
             f"float16 storage moves its futures by at most {1000 * m['float16_max_drift_m']:.3f} mm. Made with",
             "",
             f"    jaxmotion train --config {m['config']} --data ../shared/data/bandai-namco-2 --workdir RUN --seed {m['seed']}",
-            f"    python experiments/shipped_models.py measure {m['name'].removeprefix('bandai-')} RUN --max-windows {m['max_windows']}"
-            if m.get("max_windows") else f"    python experiments/shipped_models.py measure {m['name'].removeprefix('bandai-')} RUN",
+            f"    python experiments/shipped_models.py measure {m['name'].removeprefix('bandai-')} RUN"
+            + (f" --max-windows {m['max_windows']}" if m.get("max_windows") else "") + f" --stages {' '.join(m['stages'])}",
             "",
             "| windows | " + " | ".join(KEEP) + " |",
             "| --- |" + " --- |" * len(KEEP),
@@ -199,7 +199,8 @@ def main(argv=None) -> None:
     s = sub.add_parser("measure")
     s.add_argument("name")
     s.add_argument("run", type=Path)
-    s.add_argument("--max-windows", type=int, default=None, help="a quick check of this script: that many windows (not for the cards)")
+    s.add_argument("--max-windows", type=int, default=None, help="that many evenly spaced validation and test windows")
+    s.add_argument("--stages", nargs="+", default=None, help="only these stages of the run (default: all), e.g. cvae")
     sub.add_parser("ship")
     s = sub.add_parser("blend")
     s.add_argument("run", type=Path)
@@ -211,7 +212,7 @@ def main(argv=None) -> None:
         return
     results = json.loads(RESULTS.read_text()) if RESULTS.is_file() else {}
     if args.command == "measure":
-        results[args.name] = measure(args.name, args.run.expanduser(), args.max_windows)
+        results[args.name] = measure(args.name, args.run.expanduser(), args.max_windows, tuple(args.stages) if args.stages else None)
         results[args.name]["max_windows"] = args.max_windows
         RESULTS.write_text(json.dumps(results, indent=1) + "\n")
         print(json.dumps(results[args.name], indent=1))
