@@ -280,7 +280,9 @@ def predict_file(
         f"model: {model.run_dir} ({model.manifest['dataset']['name']}, {model.config.method}; {len(lay['joints'])} joints, "
         f"{t_his} -> {t_pred} frames at {fps:g} fps)",
         *[f"note: {s}" for s in notes],
-        *[f"warning: far from the model's training data: {s}" for s in far],
+        *[f"warning: far from the model's training data: {s}"
+          + ("; the model sees the clip on its own skeleton (retargeted)" if retarget and s.startswith("proportions") else "")
+          for s in far],
         f"observed: input frames {first_in}..{end_in}" + ("" if gt is not None else " (no ground truth after it)"),
         f"predicted: K={k} futures with {method!r}; BVH files hold the {t_his} observed frames, then {t_pred} predicted, "
         "the root held at its last observed position",
