@@ -62,6 +62,7 @@ def evaluate_folder(
                               seed=model.config.seed if seed is None else seed, mm_ground_truth="test", mm_deviation=None)
     prep = experiment.prepare(ds, None, test_only=True)
     workdir = Path(workdir)
+    retarget = retarget and model.bone_lengths is not None  # a run whose manifest has no skeleton is shown the clips as they are
     label = f"{ds.name} (every clip a test clip{', retargeted onto the model' if retarget else ''})"
     records = eval_loop.evaluate(cfg, folder_method(model, retarget), prep, model.params, workdir, label)
     clips = ", ".join(sorted(s.name for s in ds.test)[:6])
