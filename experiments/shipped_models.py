@@ -14,6 +14,9 @@ on), on the protocol's test windows (reported, never used to choose) and on ../s
 `blend RUN METHOD` sweeps the length of the blend from the observed motion into a retargeted model's
 futures (`predictor.RETARGET_BLEND_S`, chosen on validation windows: experiments/results/retarget_blend.md).
 
+`revalidate NAME --max-windows N` measures a shipped file again on N validation windows, so that every
+model is compared on the same windows.
+
 `ship` chooses the default (`jaxmotion predict --model bandai`) by the rule `RULE` and writes
 `jaxmotion/pretrained/models.json` (read by `jaxmotion models` and `jaxmotion.load`) and the model
 cards `jaxmotion/pretrained/README.md`, both generated from the results file.
@@ -169,6 +172,18 @@ def cards(reg: dict, models: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def revalidate(name: str, max_windows: int) -> dict:
+    """Returns the record of `name` with its validation metrics measured again on `max_windows` evenly spaced windows
+    (the shipped file), so that every model is compared on the same windows; the earlier ones are kept beside them."""
+    results = json.loads(RESULTS.read_text())
+    rec = results[name]
+    model = load(PRETRAINED_DIR / rec["file"])
+    cfg, val = _split(model, "val", max_windows)
+    rec[f"validation_{rec['validation']['n_windows']}"] = rec["validation"]
+    rec["validation"] = _bandai(model, cfg, val, Path(tempfile.mkdtemp(prefix=f"shipped_{name}_")))
+    return rec
+
+
 def blend_sweep(run: Path, method: str, frames: tuple[int, ...], max_windows: int = 400) -> list[str]:
     """Returns one line per blend length (`predictor.inertialized`): ADE / FDE / FFE of the retargeted predictor on
     `max_windows` evenly spaced validation windows of Bandai-Namco-2 (what `RETARGET_BLEND_S` is chosen on) and on
@@ -202,11 +217,19 @@ def main(argv=None) -> None:
     s.add_argument("--max-windows", type=int, default=None, help="that many evenly spaced validation and test windows")
     s.add_argument("--stages", nargs="+", default=None, help="only these stages of the run (default: all), e.g. cvae")
     sub.add_parser("ship")
+    s = sub.add_parser("revalidate")
+    s.add_argument("name")
+    s.add_argument("--max-windows", type=int, required=True)
     s = sub.add_parser("blend")
     s.add_argument("run", type=Path)
     s.add_argument("method")
     s.add_argument("--frames", default="0,8,15,30,45,60")
     args = p.parse_args(argv)
+    if args.command == "revalidate":
+        results[args.name] = revalidate(args.name, args.max_windows)
+        RESULTS.write_text(json.dumps(results, indent=1) + "\n")
+        print(json.dumps(results[args.name]["validation"], indent=1))
+        return
     if args.command == "blend":
         print("\n".join(blend_sweep(args.run.expanduser(), args.method, tuple(int(f) for f in args.frames.split(",")))), flush=True)
         return
