@@ -171,8 +171,8 @@ STYLES = ["active", "normal", "elderly"]
 
 
 def bandai_like_bvh(num_frames: int, seed: int) -> str:
-    """Returns a Bandai-style BVH: ground node, Hips with 6 channels, a spine, a left and a right leg (a body over 1 m across)."""
-    joints = [("joint_Root", -1, (0, 0, 0)), ("Hips", 0, (1, 90, -400)), ("Spine", 1, (0, 60, 0)),
+    """Returns a Bandai-style BVH: ground node, Hips with 6 channels, a left and a right leg."""
+    joints = [("joint_Root", -1, (0, 0, 0)), ("Hips", 0, (1, 90, -400)), ("Spine", 1, (0, 15, 0)),
               ("UpperLeg_L", 1, (10, -5, 0)), ("LowerLeg_L", 3, (0, -40, 0)),
               ("UpperLeg_R", 1, (-10, -5, 0)), ("LowerLeg_R", 5, (0, -40, 0))]  # fmt: skip
     lines = ["HIERARCHY"]
