@@ -225,6 +225,7 @@ def main(argv=None) -> None:
     s.add_argument("method")
     s.add_argument("--frames", default="0,8,15,30,45,60")
     args = p.parse_args(argv)
+    results = json.loads(RESULTS.read_text()) if RESULTS.is_file() else {}
     if args.command == "revalidate":
         results[args.name] = revalidate(args.name, args.max_windows)
         RESULTS.write_text(json.dumps(results, indent=1) + "\n")
@@ -233,7 +234,6 @@ def main(argv=None) -> None:
     if args.command == "blend":
         print("\n".join(blend_sweep(args.run.expanduser(), args.method, tuple(int(f) for f in args.frames.split(",")))), flush=True)
         return
-    results = json.loads(RESULTS.read_text()) if RESULTS.is_file() else {}
     if args.command == "measure":
         results[args.name] = measure(args.name, args.run.expanduser(), args.max_windows, tuple(args.stages) if args.stages else None)
         results[args.name]["max_windows"] = args.max_windows
