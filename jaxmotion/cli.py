@@ -1,4 +1,4 @@
-"""The `jaxmotion` command: `run`, `train`, `eval`, `sample`, `methods`, `predict`, `export`, `view`.
+"""The `jaxmotion` command: `run`, `train`, `eval`, `sample`, `methods`, `models`, `predict`, `export`, `view`.
 
 Examples (`jaxmotion COMMAND --help` lists every option):
 
@@ -12,6 +12,7 @@ jaxmotion eval --model bandai --data MY_BVH_FOLDER [--workdir DIR]   # a shipped
 jaxmotion sample --config CFG [--workdir DIR] --window 3 --k 50 --method dlow
 jaxmotion sample --config experiments/configs/gsps_synthetic.py --window 208 --fix-part lower   # one lower body, 10 upper bodies
 jaxmotion methods                               # the registered methods and their stages' settings type
+jaxmotion models                                # the shipped models: size, data, licence, metrics
 jaxmotion predict --model bandai clip.bvh --out DIR     # your own motion, the shipped model (no training)
 jaxmotion predict RUN_DIR --input clip.bvh [--frame F] [--k K] [--method M] [--joint-map FILE] --out DIR
 jaxmotion export RUN_DIR --out model.msgpack             # one inference-only file for load / predict --model
@@ -104,6 +105,8 @@ def _parser() -> argparse.ArgumentParser:
                                                          "--data is then a folder of BVH clips, all of them test clips")
             g.add_argument("--joint-map", default=None, metavar="FILE", help='JSON {"model joint": "file joint"} (default: names, else a built-in map)')
             g.add_argument("--k", type=_int_at_least(1), default=None, help="number of futures (default: the model's largest K)")
+            g.add_argument("--no-retarget", action="store_true",
+                           help="show the model each clip on its own proportions (default: on the model's skeleton, futures back on the clip's bones)")
         if name == "sample":
             s.add_argument("--window", type=_int_at_least(0), default=0, help="test window index")
             s.add_argument("--k", type=_int_at_least(1), default=None, help="number of futures (default: largest K of the config; 10 with --fix-part)")
@@ -113,6 +116,7 @@ def _parser() -> argparse.ArgumentParser:
                                 "torso right_leg left_leg right_arm left_arm) and vary the rest. The first part predicted "
                                 "(lower) is then identical across the K samples; a later one still follows the varying earlier parts")
     sub.add_parser("methods", help="list the registered methods")
+    sub.add_parser("models", help="list the shipped models: size, data, licence, metrics (jaxmotion/pretrained/README.md has their cards)")
     s = sub.add_parser("predict", help="K futures of your own clip (BVH or npz of joint positions) from a trained or shipped model")
     s.add_argument("paths", nargs="*", metavar="[RUN_DIR] CLIP",
                    help="a trained work directory or exported model file, then the clip (without --model); the clip (with --model)")
@@ -126,11 +130,14 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--joint-map", default=None, metavar="FILE",
                    help='JSON {"model joint": "file joint"} (default: same names, else a built-in map: CMU, Mixamo, LAFAN1, SMPL, Bandai-Namco)')
     s.add_argument("--seed", type=_seed, default=0, help="seed of the sampling key")
+    s.add_argument("--no-retarget", action="store_true",
+                   help="show the model the clip on its own proportions (default: on the model's skeleton, futures back on the clip's bones)")
     s.add_argument("--out", required=True, help="output folder: futures.npz, future_NN.bvh, samples.gif")
     s = sub.add_parser("export", help="write a trained run as one inference-only model file (for jaxmotion.load and predict --model)")
     s.add_argument("run_dir", help="a trained work directory (with predictor.json)")
     s.add_argument("--out", required=True, help="the model file to write (e.g. model.msgpack)")
     s.add_argument("--stages", nargs="+", default=None, help="only these stages (default: all), e.g. cvae: DLow's sampler without its Q networks")
+    s.add_argument("--float16", action="store_true", help="store the parameters as float16 (half the file; computed in float32)")
     s = sub.add_parser("view", help="one self-contained HTML page to browse test windows and their K futures in 3-D (needs plotly)")
     s.add_argument("run_dir", nargs="?", default=None, help="a trained work directory (default: --workdir, else runs/<config name>)")
     s.add_argument("--config", default=None, help="config file that rebuilds the test windows (default: the run's own, from predictor.json)")
@@ -165,19 +172,41 @@ def _list_methods() -> int:
     return 0
 
 
+def _list_models() -> int:
+    from jaxmotion.tools.predictor import shipped_models
+
+    reg = shipped_models()
+    print(f"{'name':<16s} {'method':<8s} {'MB':>5s}  {'val ADE':>7s}  {'test ADE / FDE':>14s}  {'CMU ADE / FDE / FFE':>20s}  "
+          f"{'CMU zero-velocity':>20s}")
+    for m in reg["models"]:
+        met = m["metrics"]
+        three = lambda d, ks: " / ".join(f"{d[k]:.3f}" for k in ks) if d else "-"  # noqa: E731
+        print(f"{m['name']:<16s} {m['method']:<8s} {m['size_bytes'] / 1e6:5.1f}  {three(met.get('validation'), ['ADE']):>7s}  "
+              f"{three(met.get('test'), ['ADE', 'FDE']):>14s}  {three(met.get('cmu'), ['ADE', 'FDE', 'FFE']):>20s}  "
+              f"{three(met.get('cmu_zero_velocity'), ['ADE', 'FDE', 'FFE']):>20s}"
+              + ("  (default: --model bandai)" if m["name"] == reg["default"] else ""))
+    print(f"default: {reg['default']}, chosen by {reg['rule']}")
+    print(f"data: {reg['data']}")
+    print(f"licence: {reg['licence']}")
+    print("metres, K = 50; cards: jaxmotion/pretrained/README.md")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Runs one command; a user's mistake is raised as one of `USER_ERRORS` (`predict` and `view` print it
     and return 2), for `entry` to print as one line."""
     args = _parser().parse_args(argv)
     if args.command == "methods":
         return _list_methods()
+    if args.command == "models":
+        return _list_models()
     if args.command == "predict":
         return _predict(args)
     if args.command == "export":
         from jaxmotion.tools.predictor import export
 
         try:
-            path = export(args.run_dir, args.out, tuple(args.stages) if args.stages else None)
+            path = export(args.run_dir, args.out, tuple(args.stages) if args.stages else None, float16=args.float16)
         except USER_ERRORS as e:
             return _report(e, "jaxmotion export")
         print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB): jaxmotion predict --model {path} CLIP --out DIR")
@@ -322,7 +351,8 @@ def _eval_model(args) -> int:
     except ValueError as e:
         raise SystemExit(str(e)) from None
     joint_map = read_joint_map(args.joint_map) if args.joint_map else None
-    lines = evaluate_folder(load(args.model), args.data, workdir, k=args.k, scale=scale, joint_map=joint_map, seed=args.seed)
+    lines = evaluate_folder(load(args.model), args.data, workdir, k=args.k, scale=scale, joint_map=joint_map, seed=args.seed,
+                            retarget=not args.no_retarget)
     print("\n".join(lines))
     return 0
 
@@ -342,7 +372,7 @@ def _predict(args) -> int:
     try:
         joint_map = read_joint_map(args.joint_map) if args.joint_map else None
         lines = predict_file(load(model), clip, args.out, frame=args.frame, k=args.k, method=args.method,
-                             seed=args.seed, scale=args.scale, joint_map=joint_map)
+                             seed=args.seed, scale=args.scale, joint_map=joint_map, retarget=not args.no_retarget)
     except USER_ERRORS as e:  # the user's file or run: the message says it all
         return _report(e, "jaxmotion predict")
     print("\n".join(lines))

@@ -201,14 +201,18 @@ def test_shipped_model_predicts_on_the_cmu_clips(clip, tmp_path, capsys):
 def test_eval_of_the_shipped_model_on_a_fabricated_folder(tmp_path, capsys):
     humanoid_bvh("lafan1", tmp_path / "clips" / "walk_a.bvh", fps=60.0, frames=400)
     humanoid_bvh("lafan1", tmp_path / "clips" / "walk_b.bvh", fps=60.0, frames=300, seed=1, unit=1.0)
+    humanoid_bvh("lafan1", tmp_path / "clips" / "short.bvh", fps=60.0, frames=100, seed=2)  # 50 frames at 30 fps: no window
     assert main(["eval", "--model", "bandai", "--data", str(tmp_path / "clips"), "--workdir", str(tmp_path / "w"), "--k", "10"]) == 0
     printed = capsys.readouterr().out
-    assert "2 clips, all test" in printed and "files at 60 fps" in printed
+    assert "3 clips, all test" in printed and "files at 60 fps" in printed
+    assert "skipped: 1 clip(s) not longer than t_his + t_pred = 75 frames: short.bvh" in printed
     records = json.loads((tmp_path / "w" / "metrics.json").read_text())
     # 400 and 300 frames at 60 fps -> 200 and 150 at 30; test windows of 75 frames every 15 (T > 75 + start): 9 + 5.
-    assert {r["method"] for r in records} == {"cvae", "zero_velocity"} and all(r["n_windows"] == 14 and r["K"] == 10 for r in records)
+    model = jaxmotion.load("bandai")
+    assert {r["method"] for r in records} == set(model.predictors(10)) and all(r["n_windows"] == 14 and r["K"] == 10 for r in records)
     m = {r["method"]: r["metrics"] for r in records}
-    assert all(np.isfinite(v["ADE"]) and v["ADE"] > 0 for v in m.values()) and m["cvae"]["APD"] > 0
+    assert all(np.isfinite(v["ADE"]) and v["ADE"] > 0 for v in m.values()) and m[model.main_method(10)]["APD"] > 0
+    assert all(np.isfinite(v["FFE"]) and v["FFE"] > 0 for v in m.values()) and all("retargeted onto the model" in r["dataset"] for r in records)
     assert not (tmp_path / "w" / "predictor.json").exists()
 
 
@@ -250,3 +254,83 @@ def test_predict_refuses_a_clip_whose_units_make_no_person(tmp_path, capsys):
     assert main(["predict", "--model", "bandai", str(clip), "--out", str(tmp_path / "o")]) == 2
     assert "would fit: " in capsys.readouterr().err and not (tmp_path / "o").exists()
     assert main(["predict", "--model", "bandai", str(clip), "--scale", "0.056444", "--k", "2", "--out", str(tmp_path / "o")]) == 0
+
+
+# ----------------------------------------------------------------------------------------------
+# What predict, eval and view say
+
+
+def test_predict_unit_error_names_the_clip_and_its_one_option(tmp_path, capsys):
+    clip = humanoid_bvh("bandai", tmp_path / "tiny_units.bvh", unit=0.056444, frames=100)
+    assert main(["predict", "--model", "bandai", str(clip), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert f"{clip}: units" in err and "--scale NUMBER" in err
+    assert "PATTERN" not in err and "1 of 1 files" not in err  # predict takes one clip and one number
+
+
+def test_a_body_of_an_adult_read_in_inches_is_refused_and_no_such_unit_offered(tmp_path, capsys):
+    from jaxmotion.data.units import body_size
+
+    clip = humanoid_bvh("bandai", tmp_path / "c.bvh", unit=0.01, frames=100)
+    size = body_size(read_bvh(clip))  # file units
+    small = 0.57 / size  # metres per unit that make the body 0.57 m across
+    assert main(["predict", "--model", "bandai", str(clip), "--scale", f"{small:.6g}", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "= 0.57 m (not a person)" in err and not (tmp_path / "o").exists()
+    offered = [float(m) for m in re.findall(r"\(\d[\d.e-]*: (\d+\.\d+) m\)", err)]
+    assert offered and min(offered) >= PLAUSIBLE_SIZE[0] > 0.57
+
+
+def test_folder_with_another_hierarchy_names_the_joint(tmp_path):
+    humanoid_bvh("bandai", tmp_path / "clips" / "a.bvh", frames=80)
+    humanoid_bvh("bandai", tmp_path / "clips" / "b.bvh", frames=80, reparent={"Shoulder_L": "Neck"})
+    with pytest.raises(DataError, match=r"b\.bvh: skeleton differs from .*a\.bvh's: joint 'Shoulder_L' hangs from 'Neck' here, "
+                                        r"from 'Chest' there"):
+        load_bvh_folder(tmp_path / "clips")
+
+
+def test_predict_counts_input_frames_prints_one_wrote_line_and_view_says_what_the_folder_is(tmp_path, capsys):
+    clip = humanoid_bvh("bandai", tmp_path / "c.bvh", fps=60.0, frames=300)
+    assert main(["predict", "--model", "bandai", str(clip), "--frame", "100", "--k", "3", "--out", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out.splitlines()
+    z = np.load(tmp_path / "o" / "futures.npz")
+    assert int(z["end_frame"]) == 100 and int(z["end_frame_model"]) == 50  # --frame counts input frames, and so does the npz
+    assert "observed: input frames 72..100" in out  # model frames 36..50 at 30 fps
+    assert not any("has no predictor" in s for s in out)
+    assert [s for s in out if s.startswith("wrote")] == [f"wrote {tmp_path / 'o'}/: futures.npz, future_00.bvh .. future_02.bvh "
+                                                          "(3 BVH files), samples.gif"]
+    assert any(s.startswith("note: first predicted frame: joints ") for s in out)
+    pytest.importorskip("plotly")
+    assert main(["view", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "the output of `jaxmotion predict`" in err and "jaxmotion eval" not in err
+
+
+def test_far_from_training_names_proportions_speed_and_pose_range():
+    from jaxmotion.train.manifest import far_from_training
+
+    manifest = {"layout": {"joints": ["Root", "Spine", "Head"], "parents": [-1, 0, 1]}, "bone_lengths": [0.0, 0.5, 0.4],
+                "motion_ranges": {"speed_p99": 1.0, "reach_p99": 1.0}}
+    still = np.tile(np.array([[0, 0, 0], [0, 0.5, 0], [0, 0.9, 0]], float), (15, 1, 1))
+    assert far_from_training(manifest, still, 30.0) == []
+    assert far_from_training(manifest, still * 1.3, 30.0) == []  # a taller body is not far
+    tall = still * [1.0, 2.0, 1.0]  # bones 1.0 and 0.8 m: twice the training data's; the head 1.8 m from the root
+    got = far_from_training(manifest, tall, 30.0)
+    assert got[0] == "proportions: Spine 1.00 m (training data 0.50 m), Head 0.80 m (training data 0.40 m)"
+    assert got[1].startswith("pose range: a joint 1.80 m from the root") and len(got) == 2
+    fast = still + np.array([[0.0, 0, 0], [0.1, 0, 0]])[np.arange(15) % 2][:, None]  # 0.1 m per frame along x at 30 fps: 3 m/s
+    assert far_from_training(manifest, fast, 30.0) == ["speed: joints move 3.00 m/s on average (training data: 99% of frames under 1.00 m/s)"]
+
+
+def test_the_shipped_example_clip_reads_and_predicts(tmp_path, capsys):
+    from jaxmotion.examples import cmu_clip
+    from jaxmotion.tools.predict_file import read_motion
+
+    clip = cmu_clip()
+    m = read_motion(clip)
+    assert m.positions.shape == (300, 31, 3) and abs(m.fps - 30) < 0.01 and abs(m.scale - 0.056444) < 1e-9
+    assert 1.0 < np.ptp(m.positions[0], axis=0).max() < 2.0  # a person, in metres
+    assert main(["predict", "--model", "bandai", str(clip), "--k", "2", "--out", str(tmp_path / "o")]) == 0
+    assert np.load(tmp_path / "o" / "futures.npz")["futures"].shape[:2] == (2, 60)
+    with pytest.raises(FileNotFoundError, match="not a shipped example clip"):
+        cmu_clip("nope")

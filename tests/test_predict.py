@@ -303,7 +303,7 @@ def test_predicted_bvh_npz_and_gif_show_one_motion_on_the_input_skeleton(run, tm
     pos[:, 1:] += 0.3 * (pos[:, 1:] - pos[:, [0]])  # a body 1.3 x the model's: its bone lengths differ from the training data's
     clip = write_bvh(tmp_path / "big.bvh", bvh_from_positions(ds.skeleton.names, ds.skeleton.parents, pos, ds.fps))
     lines = predict_file(jaxmotion.load(moved), clip, tmp_path / "o", k=3)
-    assert any("put on the input's bone lengths" in s for s in lines)
+    assert any("futures fitted to the input's skeleton" in s for s in lines)
     z = np.load(tmp_path / "o" / "futures.npz")
     src = read_bvh(clip)
     par = np.array(src.parents)
@@ -314,9 +314,14 @@ def test_predicted_bvh_npz_and_gif_show_one_motion_on_the_input_skeleton(run, tm
         assert np.abs(p[:15] - z["observed_joints"]).max() < 1e-3
         np.testing.assert_allclose(np.linalg.norm(p[:, 1:] - p[:, par[1:]], axis=-1), np.broadcast_to(want, (75, len(want))), rtol=1e-5)
         np.testing.assert_allclose(z["futures"][i], (z["joints"][i][:, 1:] - z["joints"][i][:, :1]).reshape(60, -1), atol=1e-5)
-    # The raw output stays beside it, and it is another motion: the model's bodies have the training data's size.
-    raw = z["futures_raw"].reshape(3, 60, -1, 3)
-    assert raw.shape == (3, 60, ds.skeleton.num_joints - 1, 3) and np.abs(z["futures_raw"] - z["futures"]).max() > 0.01
+    # The model's output stays beside it, already on the input's bones (retargeted back from the model's skeleton);
+    # with --no-retarget it is on the training data's, another body.
+    raw = z["joints_raw"]
+    assert raw.shape == (3, 60, ds.skeleton.num_joints, 3)
+    np.testing.assert_allclose(np.linalg.norm(raw[:, :, 1:] - raw[:, :, par[1:]], axis=-1), np.broadcast_to(want, (3, 60, len(want))), rtol=1e-4)
+    predict_file(jaxmotion.load(moved), clip, tmp_path / "n", k=3, retarget=False)
+    raw = np.load(tmp_path / "n" / "futures.npz")["joints_raw"]
+    assert np.abs(np.linalg.norm(raw[:, :, 1:] - raw[:, :, par[1:]], axis=-1) - want).max() > 0.05
 
 
 def test_exported_model_predicts_like_its_run(run, tmp_path, capsys):
@@ -336,3 +341,29 @@ def test_exported_model_predicts_like_its_run(run, tmp_path, capsys):
     bad.write_bytes((tmp_path / "m.msgpack").read_bytes()[:5000])
     with pytest.raises(CheckpointError, match="not an exported jaxmotion model"):
         jaxmotion.load(bad)
+
+
+def test_float16_export_is_half_the_size_and_predicts_alike(run, tmp_path):
+    _, _, prep, _, moved = run
+    assert main(["export", str(moved), "--out", str(tmp_path / "m32.msgpack")]) == 0
+    assert main(["export", str(moved), "--out", str(tmp_path / "m16.msgpack"), "--float16"]) == 0
+    s32, s16 = (tmp_path / "m32.msgpack").stat().st_size, (tmp_path / "m16.msgpack").stat().st_size
+    assert s16 < 0.6 * s32
+    a, b = jaxmotion.load(tmp_path / "m32.msgpack"), jaxmotion.load(tmp_path / "m16.msgpack")
+    assert all(v.dtype == np.float32 for p in b.params.values() for v in jax.tree.leaves(p) if np.issubdtype(v.dtype, np.floating))
+    key = jax.random.key(1)
+    got, want = b.predict(prep.x[:2], 4, key, "cvae"), a.predict(prep.x[:2], 4, key, "cvae")
+    assert 0 < np.abs(got - want).max() < 1e-2  # rounded weights: close, not equal
+
+
+def test_models_command_lists_every_shipped_model(capsys):
+    from jaxmotion.tools.predictor import PRETRAINED, shipped_models
+
+    assert main(["models"]) == 0
+    out = capsys.readouterr().out
+    reg = shipped_models()
+    for m in reg["models"]:
+        assert any(line.startswith(m["name"] + " ") for line in out.splitlines())
+        assert (Path(jaxmotion.__file__).parent / "pretrained" / m["file"]).is_file()
+    assert f"default: {reg['default']}, chosen by {reg['rule']}" in out and PRETRAINED["bandai"] == PRETRAINED[reg["default"]]
+    assert "licence: CC BY-NC 4.0" in out

@@ -59,6 +59,52 @@ def frame_parents(parents: tuple[int, ...]) -> tuple[int, ...]:
     return tuple(p - 1 for p in parents[1:])
 
 
+def with_bone_lengths(
+    frames: Float[ArrayLike, "*s d"], lengths: Float[ArrayLike, "*t b"], parents: tuple[int, ...], *,
+    borrow_direction: bool = False, span_zero_bones: bool = False,
+) -> Float[Array, "*o d"]:
+    """Returns `frames` rebuilt parent to child from the root at the origin, every bone keeping its direction in
+    `frames` and taking its length from `lengths` (`(..., J - 1)`, bone i ends at joint i + 1), broadcast over leading axes.
+
+    Two skeletons may split a limb differently (one puts the clavicle or the neck at its parent's joint, with
+    zero length, the other gives it a length). `borrow_direction`: a bone of zero length in `frames` (no
+    direction) takes the direction of its first child bone, instead of staying at zero length.
+    `span_zero_bones`: a bone whose parent bone has zero length in `lengths` points from the nearest joint
+    above it that a bone of non-zero length ends at (or the root), so that it spans the bones it replaces.
+    """
+    fp = frame_parents(parents)
+    frames, lengths = jnp.asarray(frames), jnp.asarray(lengths, jnp.result_type(frames.dtype, jnp.float32))
+    if lengths.shape[-1] != len(fp):
+        raise ValueError(f"with_bone_lengths: {lengths.shape[-1]} bone lengths for a skeleton of {len(parents)} joints ({len(fp)} bones)")
+    bones = bone_vectors(frames, parents)
+    unit = lambda v: v / jnp.maximum(jnp.linalg.norm(v, axis=-1, keepdims=True), 1e-12)  # noqa: E731
+    directions = [unit(bones[..., j, :]) for j in range(len(fp))]
+    if borrow_direction:
+        norms = jnp.linalg.norm(bones, axis=-1, keepdims=True)
+        for j in reversed(range(len(fp))):  # children come after their parents: theirs are final when j is reached
+            child = next((c for c, p in enumerate(fp) if p == j), None)
+            if child is not None:
+                directions[j] = jnp.where(norms[..., j, :] > 1e-6, directions[j], directions[child])
+    if span_zero_bones:
+        joints = frames.reshape(frames.shape[:-1] + (-1, 3))
+        at = lambda a: joints[..., a, :] if a >= 0 else jnp.zeros_like(joints[..., 0, :])  # noqa: E731  (-1: the root)
+        for j in range(len(fp)):
+            chain, a = [], fp[j]
+            while a >= 0:  # the joints above j, nearest first; the root (-1) last
+                chain.append(a)
+                a = fp[a]
+            d = unit(joints[..., j, :] - at(-1))
+            for a in reversed(chain):  # the nearest ancestor whose own bone has a length wins
+                d = jnp.where(lengths[..., a, None] > 1e-6, unit(joints[..., j, :] - at(a)), d)
+            directions[j] = d
+    shape = jnp.broadcast_shapes(bones.shape[:-2], lengths.shape[:-1]) + (3,)
+    out: list = []
+    for j, p in enumerate(fp):
+        base = out[p] if p >= 0 else jnp.zeros(shape, frames.dtype)
+        out.append(jnp.broadcast_to(base + lengths[..., j, None] * directions[j], shape))
+    return jnp.stack(out, axis=-2).reshape(shape[:-1] + (-1,)).astype(frames.dtype)
+
+
 def motion_transfer(
     source: Float[Array, "*s d"], target: Float[Array, "*t d"], parents: tuple[int, ...]
 ) -> Float[Array, "*o d"]:
@@ -68,15 +114,5 @@ def motion_transfer(
     has in `target`; joints are rebuilt parent to child from the root at the origin. `parents` is
     the skeleton's (root first, dropped from the frame vectors).
     """
-    fp = frame_parents(parents)
-    bones_src, bones_tgt = bone_vectors(source, parents), bone_vectors(target, parents)
-    shape = jnp.broadcast_shapes(bones_src.shape[:-2], bones_tgt.shape[:-2]) + (3,)
-    out: list = []
-    for j, p in enumerate(fp):
-        v_src, v_tgt = bones_src[..., j, :], bones_tgt[..., j, :]
-        norm = jnp.linalg.norm(v_src, axis=-1, keepdims=True)
-        direction = v_src / jnp.maximum(norm, 1e-12)
-        length = jnp.linalg.norm(v_tgt, axis=-1, keepdims=True)
-        base = out[p] if p >= 0 else jnp.zeros(shape, source.dtype)
-        out.append(jnp.broadcast_to(base + length * direction, shape))
-    return jnp.stack(out, axis=-2).reshape(shape[:-1] + (-1,))
+    frame_parents(parents)  # the parents' order is checked before any bone is measured
+    return with_bone_lengths(source, bone_lengths(target, parents), parents)

@@ -275,6 +275,21 @@ def _check_bandai_json(f: Path, content: str, style: str, contents: list[str], s
         raise DataError(j, f"labels say content {c!r} style {s!r}, file name says {content!r} {style!r}")
 
 
+def skeleton_difference(names, parents, ref_names, ref_parents) -> str:
+    """Returns the first difference between two skeletons (joint names and parents), named joint by joint, for an error."""
+    parent = lambda ns, ps, i: ns[ps[i]] if ps[i] >= 0 else "nothing (the root)"  # noqa: E731
+    missing, extra = [n for n in ref_names if n not in names], [n for n in names if n not in ref_names]
+    if missing or extra:
+        parts = ([f"joints {missing} missing"] if missing else []) + ([f"joints {extra} not in it"] if extra else [])
+        return f"{', '.join(parts)} ({len(names)} vs {len(ref_names)} joints)"
+    for i, n in enumerate(names):
+        j = ref_names.index(n)
+        if parent(names, parents, i) != parent(ref_names, ref_parents, j):
+            return f"joint {n!r} hangs from {parent(names, parents, i)!r} here, from {parent(ref_names, ref_parents, j)!r} there"
+    first = next(i for i, (a, b) in enumerate(zip(names, ref_names)) if a != b)
+    return f"the same joints in another order (joint {first} is {names[first]!r} here, {ref_names[first]!r} there)"
+
+
 def load_bvh_folder(
     path: str | os.PathLike,
     *,
@@ -332,7 +347,7 @@ def load_bvh_folder(
             drop = _joints_above(bvh, root) if root is not None else int(is_ground_skeleton(bvh))
             skeleton, rate, first = Skeleton(bvh.names, bvh.parents), bvh.fps / downsample, f
         elif (bvh.names, bvh.parents) != (skeleton.names, skeleton.parents):
-            raise DataError(f, f"skeleton differs from {first}'s ({bvh.num_joints} vs {skeleton.num_joints} joints)")
+            raise DataError(f, f"skeleton differs from {first}'s: {skeleton_difference(bvh.names, bvh.parents, skeleton.names, skeleton.parents)}")
         elif fps is None and abs(bvh.fps / downsample - rate) > 0.01 * rate:
             raise DataError(f, f"{bvh.fps / downsample:.3f} fps but {first} has {rate:.3f}; resample every file to one rate "
                                "with data_options {'fps': 30}")

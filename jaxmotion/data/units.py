@@ -72,8 +72,12 @@ def _number(v: str) -> float:
     return s
 
 
-def file_scales(bvhs: dict[Path, Bvh], scale: float | dict[str, float] | None, root: Path) -> dict[Path, float]:
-    """Returns metres per unit of every file (module docstring), or raises one `DataError` listing every file."""
+def file_scales(bvhs: dict[Path, Bvh], scale: float | dict[str, float] | None, root: Path, *, one_file: bool = False) -> dict[Path, float]:
+    """Returns metres per unit of every file (module docstring), or raises one `DataError` listing every file.
+
+    `one_file`: `bvhs` is one clip given on its own (`jaxmotion predict`): the error names the file and
+    its one `--scale NUMBER`.
+    """
     rows, scales = [], {}
     for path, bvh in bvhs.items():
         if bvh.num_frames == 0:
@@ -94,6 +98,10 @@ def file_scales(bvhs: dict[Path, Bvh], scale: float | dict[str, float] | None, r
     lo, hi = PLAUSIBLE_SIZE
     bad = [r for r in rows if r[2] is None or not lo <= r[1] * r[2] <= hi]
     spread = max(sizes) / min(sizes) if sizes and min(sizes) > 0 else 1.0
+    if one_file and bad:
+        path, (rel, size, s, how) = next(iter(bvhs)), rows[0]
+        raise DataError(path, f"units: no unit makes its body a person's ({lo:g}-{hi:g} m across): {_row(Path(path.name), size, s, how)}. "
+                              "Fix: --scale NUMBER (metres per file unit)")
     if bad or spread > MAX_SIZE_RATIO:
         why = (f"{len(bad)} of {len(rows)} files have no unit that makes their body a person's ({lo:g}-{hi:g} m)" if bad
                else f"the bodies differ in size by a factor {spread:.1f} (more than {MAX_SIZE_RATIO:g})")

@@ -148,7 +148,7 @@ def evaluate(cfg: Config, method: Method, prep: Prepared, params: dict, workdir:
 def format_record(rec: dict) -> str:
     """Returns one line of a record's main metrics, as `jaxmotion eval` prints them."""
     m = rec["metrics"]
-    keys = ["APD", "ADE", "FDE", "MMADE", "MMFDE", "ADE-m", "FDE-m", "mode_recall", "mode_recall_weighted", "CMD", "FID"]
+    keys = ["APD", "ADE", "FDE", "MMADE", "MMFDE", "ADE-m", "FDE-m", "FFE", "mode_recall", "mode_recall_weighted", "CMD", "FID"]
     vals = " ".join(f"{k}={m[k]:.4f}" for k in keys if k in m)
     compiling = f", {rec['compile_s']:.1f}s compiling" if "compile_s" in rec else ""
     return f"[{rec['dataset']}] {rec['method']:<13s} K={rec['K']:<3d} {vals} ({rec['wall_s']:.1f}s{compiling})"

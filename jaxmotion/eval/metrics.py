@@ -203,6 +203,22 @@ def fde_median(pred: Float[ArrayLike, "n k t d"], gt: Float[ArrayLike, "n t d"])
     return _reduce_k(_fde_terms(pred, gt), "median")
 
 
+@jax.jit
+def _ffe_terms(pred: Float[Array, "n k t d"], gt: Float[Array, "n t d"]) -> Float[Array, "n k"]:
+    return _frame_dists(pred[:, :, :1], gt[:, :1])[..., 0]
+
+
+@_checked
+def first_frame_error(pred: Float[ArrayLike, "n k t d"], gt: Float[ArrayLike, "n t d"]) -> Float[Array, " n"]:
+    """Returns per-window FFE `min_k ||Yhat_{k,1} - Y_1||_2`: FDE at the first predicted frame.
+
+    A future that does not continue the observed motion (a jump onto other proportions or another pose)
+    shows here before it shows in ADE; zero-velocity's FFE is the motion of one frame.
+    """
+    pred, gt = _check_pred_gt("first_frame_error", pred, gt)
+    return _reduce_k(_ffe_terms(pred, gt), "min")
+
+
 # --------------------------------------------------------------------------------------------
 # Multimodal ground truth.
 

@@ -8,7 +8,10 @@ matched to the model's (`joint_maps.match_skeleton`: a joint map, the names, or 
 convention; the hierarchy checked), and the protocol's test windows (stride `t_his`, [protocol §4][datasets])
 of the model's `t_his -> t_pred` are scored with the model's predictors (`experiment.evaluate`:
 APD, ADE, FDE, MMADE, MMFDE, ADE-m, FDE-m; multimodal ground truth over the folder's windows at the
-model's threshold).
+model's threshold), with FFE (the first predicted frame's error, `eval.metrics.first_frame_error`) beside them.
+A clip of other proportions than the model's training data is retargeted (`predictor.retargeted`, unless
+`retarget=False`): the model sees each observed window on its own skeleton, and its futures are put back on
+the window's bones before they are scored against the clip's own future.
 """
 
 from __future__ import annotations
@@ -23,6 +26,9 @@ from jaxmotion.config import check_memory
 from jaxmotion.data.datasets import load_bvh_folder
 from jaxmotion.data.types import MotionDataset
 from jaxmotion.errors import DataError, UsageError
+from jaxmotion.eval import loop as eval_loop
+from jaxmotion.eval.metrics import first_frame_error
+from jaxmotion.method import ExtraMetrics, Method
 from jaxmotion.tools.joint_maps import match_skeleton
 from jaxmotion.tools.predictor import MotionPredictor
 
@@ -48,6 +54,7 @@ def folder_as_test_set(
 def evaluate_folder(
     model: MotionPredictor, folder: str | Path, workdir: str | Path, *, k: int | None = None,
     scale: float | dict[str, float] | None = None, joint_map: dict[str, str] | None = None, seed: int | None = None,
+    retarget: bool = True,
 ) -> list[str]:
     """Writes `workdir/metrics.json` (one record per predictor, [protocol §6][reporting]) and returns the lines to print."""
     if k is not None and not (isinstance(k, int) and k >= 1):
@@ -59,12 +66,34 @@ def evaluate_folder(
                               seed=model.config.seed if seed is None else seed, mm_ground_truth="test", mm_deviation=None)
     prep = experiment.prepare(ds, None, test_only=True)
     workdir = Path(workdir)
-    records = experiment.evaluate(cfg, prep, model.params, workdir, f"{ds.name} (every clip a test clip)", manifest=False)
+    retarget = retarget and model.bone_lengths is not None  # a run whose manifest has no skeleton is shown the clips as they are
+    label = f"{ds.name} (every clip a test clip{', retargeted onto the model' if retarget else ''})"
+    records = eval_loop.evaluate(cfg, folder_method(model, retarget), prep, model.params, workdir, label)
     clips = ", ".join(sorted(s.name for s in ds.test)[:6])
+    short = sorted(s.name for s in ds.test if len(s.positions) <= ds.t_his + ds.t_pred)
     return [
         f"data: {folder}: {len(ds.test)} clips, all test ({clips}{', ...' if len(ds.test) > 6 else ''}); {how}; "
         f"{ds.t_his}->{ds.t_pred} frames at {round(ds.fps, 2):g} fps (files at {', '.join(f'{round(r, 2):g}' for r in ds.info['file_fps'])} fps), "
         f"{len(prep.windows)} test windows",
+        *([f"skipped: {len(short)} clip(s) not longer than t_his + t_pred = {ds.t_his + ds.t_pred} frames: {', '.join(short)}"] if short else []),
         f"model: {model.run_dir} ({model.manifest['dataset']['name']}, {model.config.method}), K={k}",
         f"wrote {workdir / 'metrics.json'} ({len(records)} records)",
     ]
+
+
+def folder_method(model: MotionPredictor, retarget: bool = True) -> Method:
+    """Returns the model's method with the model's own predictors (retargeted when `retarget`, `MotionPredictor.predictors`)
+    and FFE (`first_frame_error`) added to its own metrics."""
+    own = model.method.extra_metrics
+
+    def extra(cfg, ds, params) -> ExtraMetrics:
+        mine = own(cfg, ds, params) if own is not None else None
+
+        def per_window(pred: np.ndarray, gt: np.ndarray) -> dict[str, np.ndarray]:
+            out = {"FFE": np.asarray(first_frame_error(pred, gt))}
+            return {**out, **mine.per_window(pred, gt)} if mine is not None else out
+
+        return ExtraMetrics(per_window, mine.record if mine is not None else {})
+
+    return dataclasses.replace(model.method, predictors=lambda cfg, ds, params, k: model.predictors(k, retarget),
+                               extra_metrics=extra)

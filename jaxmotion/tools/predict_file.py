@@ -40,6 +40,7 @@ from jaxmotion.tools.joint_maps import match_skeleton
 from jaxmotion.tools.predict_markers import predict_markers
 from jaxmotion.tools.predictor import MotionPredictor
 from jaxmotion.tools.retarget import bvh_from_positions, fit_bvh
+from jaxmotion.train.manifest import far_from_training
 
 
 @dataclasses.dataclass
@@ -65,7 +66,7 @@ def read_motion(path: str | Path, scale: float | None = None) -> Motion:
         bvh = read_bvh(path)
         if scale is not None:
             _scale(path, scale)  # a negative scale would mirror the body
-        s = file_scales({path: bvh}, scale, path.parent)[path]  # guessed or given, checked against a person's size
+        s = file_scales({path: bvh}, scale, path.parent, one_file=True)[path]  # guessed or given, checked against a person's size
         notes = [f"units: {s:g} m per file unit ({'guessed from the skeleton' if scale is None else '--scale'}), "
                  f"a body {body_size(bvh) * s:.2f} m across"]
         return _checked(Motion(path, bvh.names, forward_kinematics(bvh) * s, bvh.fps, s, 1, bvh, notes))
@@ -152,7 +153,7 @@ def _roll(p: np.ndarray, shift: int) -> np.ndarray:
 def predict_file(
     model: MotionPredictor, path: str | Path, out: str | Path, *, frame: int | None = None, k: int | None = None,
     method: str | None = None, seed: int = 0, scale: float | None = None, gif: bool = True,
-    joint_map: dict[str, str] | None = None,
+    joint_map: dict[str, str] | None = None, retarget: bool = True,
 ) -> list[str]:
     """Writes the K futures of the window of `path` ending at input frame `frame` to `out`; returns the lines to print.
 
@@ -172,6 +173,8 @@ def predict_file(
         scale: metres per file unit (default: guessed from the file).
         gif: also write the animation.
         joint_map: `{model joint: input joint}` for names that differ.
+        retarget: the model sees the window on its own skeleton and facing, and answers on the input's
+            bones (`predictor.retargeted`).
 
     Returns:
         The lines `jaxmotion predict` prints: what was read, every adjustment made, what was written.
@@ -233,14 +236,16 @@ def predict_file(
     joints = pos[:, idx]  # (n, J, 3) metres, model joint order
     frames = (joints[:, 1:] - joints[:, :1]).reshape(n, -1).astype(np.float32)
     x = frames[end + 1 - t_his : end + 1]
+    far = far_from_training(model.manifest, joints[end + 1 - t_his : end + 1], fps)
     gt = frames[end + 1 : end + 1 + t_pred] if end + t_pred < n else None
     k = model.default_k if k is None else k
-    if method is None:
-        method = model.main_method(k)
-        if method != model.config.method:
-            notes.append(f"method: {model.config.method!r} has no predictor at K={k} in this model (trained K: "
-                         f"{tuple(model.config.eval_k)}; stages here: {sorted(model.params)}); using {method!r}")
-    futures = model.predict(x, k, jax.random.key(seed), method)  # (K, t_pred, D)
+    method = method or model.main_method(k)
+    retarget = retarget and model.bone_lengths is not None
+    futures = model.predict(x, k, jax.random.key(seed), method, retarget=retarget)  # (K, t_pred, D)
+    if retarget:
+        notes.append("skeleton: the observed frames put on the model's skeleton (its training data's bone lengths"
+                     f"{' and facing' if model.facing is not None else ''}, the input's bone directions) before prediction, "
+                     "the futures put back on the input's bones (--no-retarget: the input as it is)")
 
     # World joint positions of observed + future frames, the root held at its last observed place.
     root = joints[end, 0]
@@ -275,18 +280,25 @@ def predict_file(
     kept_f = (kept_j[:, :, 1:] - kept_j[:, :, :1]).reshape(k, t_pred, -1).astype(np.float32)
     moved = np.linalg.norm(kept_j - raw_j, axis=-1)
     notes.append(
-        f"skeleton: futures put on the input's bone lengths (the BVH files, 'futures' and 'joints' in futures.npz); "
+        f"skeleton: futures fitted to the input's skeleton (the BVH files, 'futures' and 'joints' in futures.npz); "
         f"joints moved {100 * moved.mean():.1f} cm on average, {100 * moved.max():.1f} cm at most, from the model's "
         "output ('futures_raw')"
     )
+    observed_j = np.stack(kept)[0, :t_his]
+    jump = np.linalg.norm(kept_j[:, 0] - observed_j[-1], axis=-1).mean()
+    step = np.linalg.norm(observed_j[-1] - observed_j[-2], axis=-1).mean() if t_his > 1 else 0.0
+    notes.append(f"first predicted frame: joints {100 * jump:.1f} cm from the last observed frame on average "
+                 f"(the observed motion moves them {100 * step:.1f} cm per frame)")
+    to_input = lambda f: min(n_in - 1, int(round(f / ratio)))  # noqa: E731  (a model-rate frame, counted as --frame counts)
+    first_in, end_in = to_input(end + 1 - t_his), to_input(end)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     savez_atomic(
         out / "futures.npz", futures=kept_f, futures_raw=futures, observed=x,
         ground_truth=gt if gt is not None else np.zeros((0,) + x.shape[1:]),
-        joints=kept_j.astype(np.float32), joints_raw=raw_j.astype(np.float32), observed_joints=np.stack(kept)[0, :t_his].astype(np.float32),
+        joints=kept_j.astype(np.float32), joints_raw=raw_j.astype(np.float32), observed_joints=observed_j.astype(np.float32),
         names=np.array(lay["joints"]), parents=np.array(lay["parents"]), fps=fps, t_his=t_his, t_pred=t_pred, method=method,
-        k=k, end_frame=end, input=str(motion.path), notes="\n".join(notes),
+        k=k, end_frame=end_in, end_frame_model=end, input=str(motion.path), notes="\n".join(notes),
     )
     written = [out / "futures.npz"]
     end_sites = read_end_sites(motion.path) if motion.bvh is not None else None
@@ -297,16 +309,27 @@ def predict_file(
 
         written.append(animate_futures(
             x, kept_f, gt, tuple(lay["parents"]), out / "samples.gif", fps=fps,
-            title=f"{motion.path.name}: frames {end + 1 - t_his}-{end} observed, {method}, K={k}",
+            title=f"{motion.path.name}: frames {first_in}-{end_in} observed, {method}, K={k}",
         ))
     lines = [
         f"input: {motion.path} ({n_in} frames at {round(motion.fps or fps, 2):g} fps, {len(motion.names or idx)} joints)",
         f"model: {model.run_dir} ({model.manifest['dataset']['name']}, {model.config.method}; {len(lay['joints'])} joints, "
         f"{t_his} -> {t_pred} frames at {fps:g} fps)",
         *[f"note: {s}" for s in notes],
-        f"observed: model-rate frames {end + 1 - t_his}..{end}" + ("" if gt is not None else " (no ground truth after it)"),
+        *[f"warning: far from the model's training data: {s}"
+          + ("; the model sees the clip on its own skeleton (retargeted)" if retarget and s.startswith("proportions") else "")
+          for s in far],
+        f"observed: input frames {first_in}..{end_in}" + ("" if gt is not None else " (no ground truth after it)"),
         f"predicted: K={k} futures with {method!r}; BVH files hold the {t_his} observed frames, then {t_pred} predicted, "
         "the root held at its last observed position",
-        *[f"wrote {p}" for p in written],
+        wrote_line(out, written),
     ]
     return lines
+
+
+def wrote_line(out: Path, written: list[Path]) -> str:
+    """Returns one line naming the files written to `out` (a run of numbered BVH files as its first and last)."""
+    bvhs = [p.name for p in written if p.suffix == ".bvh"]
+    others = [p.name for p in written if p.suffix != ".bvh"]
+    runs = [bvhs[0] if len(bvhs) == 1 else f"{bvhs[0]} .. {bvhs[-1]} ({len(bvhs)} BVH files)"] if bvhs else []
+    return f"wrote {out}/: {', '.join(others[:1] + runs + others[1:])}"

@@ -99,6 +99,12 @@ class MotionPredictor:
 
         self.run_dir = Path(run_dir)
         path = self.run_dir / MANIFEST
+        if not path.is_file() and (self.run_dir / "futures.npz").is_file():
+            raise FileNotFoundError(
+                f"{self.run_dir}: the output of `jaxmotion predict` (futures.npz, future_NN.bvh, samples.gif), not a trained run; "
+                "its futures are in futures.npz and samples.gif, and a model is given to view / predict / eval as the "
+                "run folder or model file that predict read"
+            )
         if not path.is_file():
             raise FileNotFoundError(
                 f"{path}: not found; {self.run_dir} is not a trained run (jaxmotion run / train write it), "
@@ -146,7 +152,7 @@ class MotionPredictor:
             name=self.manifest["dataset"]["name"], skeleton=self.skeleton, fps=lay["fps"], t_his=lay["t_his"],
             t_pred=lay["t_pred"], mm_threshold=lay["mm_threshold"], train=[], test=[], info=info,
         )
-        self._fns: dict[int, dict] = {}
+        self._fns: dict[tuple[int, bool], dict] = {}
 
     @property
     def t_his(self) -> int:
@@ -164,14 +170,40 @@ class MotionPredictor:
     def default_k(self) -> int:
         return max(self.config.eval_k)
 
-    def predictors(self, k: int) -> dict:
-        """Returns the method's jitted predictors at `k` by name (cached)."""
-        if k not in self._fns:
+    @property
+    def bone_lengths(self) -> np.ndarray | None:
+        """Returns the `(J - 1,)` bone lengths of the model's skeleton (the training frames' medians, m; bone i ends at
+        joint i + 1), or None for a marker model or a run whose manifest has none."""
+        b = self.manifest.get("bone_lengths")
+        return None if b is None or self.layout["frames"] != "root_relative" else np.asarray(b[1:], np.float32)
+
+    @property
+    def facing(self) -> tuple[float, int, int, int] | None:
+        """Returns `(degrees, left hip, right hip, up axis)`: the training data's most common facing
+        (`manifest.facing_angle`), or None where the manifest has none."""
+        f, up = self.manifest.get("facing"), self.layout.get("up_axis")
+        if f is None or up is None:
+            return None
+        names = self.skeleton.names
+        return float(f["degrees"]), names.index(f["left"]), names.index(f["right"]), int(up)
+
+    def predictors(self, k: int, retarget: bool = False) -> dict:
+        """Returns the method's jitted predictors at `k` by name (cached); `retarget`: each on other proportions (`retargeted`)."""
+        if (k, retarget) not in self._fns:
             try:
-                self._fns[k] = self.method.predictors(self.config, self.dataset, self.params, k)
+                fns = self.method.predictors(self.config, self.dataset, self.params, k)
             except KeyError as e:
                 raise CheckpointError(f"{self.run_dir}: stage {e.args[0]!r} has no checkpoint; train it first") from None
-        return self._fns[k]
+            if retarget:
+                if self.bone_lengths is None:
+                    raise UsageError(f"{self.run_dir}: the model has no skeleton to retarget onto (a marker model, or a run "
+                                     "trained before predictor.json held bone lengths)")
+                blend = round(RETARGET_BLEND_S * self.layout["fps"])
+                # A baseline (zero-velocity) is kept as it is: it is what the blended futures are measured against.
+                fns = {name: retargeted(fn, self.bone_lengths, self.skeleton.parents, self.facing,
+                                        0 if name in self.method.deterministic else blend) for name, fn in fns.items()}
+            self._fns[(k, retarget)] = fns
+        return self._fns[(k, retarget)]
 
     @property
     def methods(self) -> list[str]:
@@ -179,11 +211,14 @@ class MotionPredictor:
         return sorted(self.predictors(self.default_k))
 
     def main_method(self, k: int | None = None) -> str:
-        """Returns the method's own predictor name (else the last one listed)."""
+        """Returns the method's own predictor name (else the last one listed that is not a baseline such as zero-velocity)."""
         fns = self.predictors(k or self.default_k)
-        return self.config.method if self.config.method in fns else list(fns)[-1]
+        learned = [n for n in fns if n not in self.method.deterministic]
+        return self.config.method if self.config.method in fns else (learned or list(fns))[-1]
 
-    def predict(self, x, k: int | None = None, key: jax.Array | None = None, method: str | None = None) -> np.ndarray:
+    def predict(
+        self, x, k: int | None = None, key: jax.Array | None = None, method: str | None = None, *, retarget: bool = False,
+    ) -> np.ndarray:
         """Returns `(K, t_pred, D)` futures for `x` `(t_his, D)`, or `(b, K, t_pred, D)` for `(b, t_his, D)`.
 
         Args:
@@ -193,6 +228,8 @@ class MotionPredictor:
             key: a `jax.random` key (default `jax.random.key(0)`: the same futures every call).
             method: the predictor (default: the run's own; `methods` lists the others, e.g. its CVAE
                 sampled from N(0, I)).
+            retarget: for a body of other proportions than the training data's (`retargeted`): the model
+                sees `x` on its own skeleton, and the futures come back on the bones of `x`'s last frame.
 
         Returns:
             numpy float32 futures, `(K, t_pred, D)` or `(b, K, t_pred, D)`, in the frames of `x`.
@@ -212,7 +249,7 @@ class MotionPredictor:
             raise ValueError("predict: x holds NaN or inf")
         if k < 1:
             raise UsageError(f"predict: k (the number of futures) must be >= 1, got {k}")
-        fns = self.predictors(k)
+        fns = self.predictors(k, retarget)
         method = method or self.main_method(k)
         if method not in fns:
             raise UsageError(
@@ -226,6 +263,69 @@ class MotionPredictor:
                 "or the input is far outside what it was trained on); nothing was written"
             )
         return out[0] if single else out
+
+
+# How long a retargeted future takes to blend from the observed motion into the model's own (`inertialized`):
+# chosen on the validation windows of Bandai-Namco-2 among 0, 0.27, 0.5, 1, 1.5 and 2 s
+# (experiments/results/retarget_blend.md).
+RETARGET_BLEND_S = 1.0
+
+
+def inertialized(futures: jax.Array, x: jax.Array, frames: int) -> jax.Array:
+    """Returns `futures` `(b, K, t_pred, D)` shifted so that their first frame continues `x` `(b, t_his, D)` at its
+    last velocity, the shift fading out over `frames` frames (a half cosine), as inertialization blends an
+    animation transition; `frames = 0` returns `futures` unchanged."""
+    if frames <= 0:
+        return futures
+    target = 2 * x[:, -1] - x[:, -2] if x.shape[1] > 1 else x[:, -1]  # (b, D): the next frame at constant velocity
+    t = jnp.arange(futures.shape[2], dtype=futures.dtype)
+    w = jnp.where(t < frames, 0.5 * (1 + jnp.cos(jnp.pi * t / frames)), 0.0)  # 1 at the first frame, 0 from `frames` on
+    return futures + w[None, None, :, None] * (target[:, None, None] - futures[:, :, :1])
+
+
+def retargeted(fn, lengths: np.ndarray, parents: tuple[int, ...], facing: tuple[float, int, int, int] | None = None,
+               blend: int = 0):
+    """Returns `fn` (a predictor, `(b, t_his, D), key -> (b, K, t_pred, D)`) for bodies of other proportions, jitted.
+
+    `blend`: the futures start from the observed motion and blend into the model's own over that many frames
+    (`inertialized`). The observed frames are put on the model's skeleton (every bone the direction it has in the input and
+    the length `lengths`, the training data's; a bone of zero length borrows its child's direction,
+    `bones.with_bone_lengths`) and, with `facing` (`MotionPredictor.facing`), turned about the up axis so
+    that the last observed frame faces the way the training data mostly does, before `fn` sees them. The
+    futures are turned back and put on the bones of each window's last observed frame (a bone after one of zero
+    length there spans the model's bones it replaces). A model trained on
+    one set of actors otherwise reads other proportions as a pose, and answers on its own actors'
+    proportions: the first predicted frame then jumps away from the last observed one.
+    """
+    from jaxmotion.body.bones import bone_lengths, with_bone_lengths
+
+    lengths = jnp.asarray(lengths, jnp.float32)
+
+    def turn(frames, angle):  # (b, ..., D) turned by `angle` (b,) radians about the up axis
+        if facing is None:
+            return frames
+        up = facing[3]
+        a_axis, b_axis = (up + 1) % 3, (up + 2) % 3
+        j = frames.reshape(frames.shape[:-1] + (-1, 3))
+        c, s = (f(angle).reshape((-1,) + (1,) * (j.ndim - 2)) for f in (jnp.cos, jnp.sin))
+        a, b = j[..., a_axis], j[..., b_axis]
+        j = j.at[..., a_axis].set(a * c - b * s).at[..., b_axis].set(a * s + b * c)
+        return j.reshape(frames.shape)
+
+    def hip_angle(last):  # (b, D) -> (b,) radians, as `manifest.facing_angle` measures it on joints
+        joints = jnp.concatenate([jnp.zeros(last.shape[:-1] + (1, 3)), last.reshape(last.shape[:-1] + (-1, 3))], axis=-2)
+        v = joints[..., facing[2], :] - joints[..., facing[1], :]
+        return jnp.arctan2(v[..., (facing[3] + 2) % 3], v[..., (facing[3] + 1) % 3])
+
+    @jax.jit
+    def predict(x, key):
+        own = bone_lengths(x[:, -1], parents)  # (b, J - 1)
+        turned = jnp.radians(facing[0]) - hip_angle(x[:, -1]) if facing is not None else jnp.zeros(x.shape[0])
+        seen = turn(with_bone_lengths(x, lengths, parents, borrow_direction=True), turned)
+        futures = inertialized(fn(seen, key), seen, blend)
+        return with_bone_lengths(turn(futures, -turned), own[:, None, None], parents, span_zero_bones=True)
+
+    return predict
 
 
 def load(run_dir: str | Path, stages: tuple[str, ...] | None = None) -> MotionPredictor:
@@ -251,32 +351,57 @@ def load(run_dir: str | Path, stages: tuple[str, ...] | None = None) -> MotionPr
 # Exported models: one file with the parameters (no optimiser state) and what predictor.json holds.
 
 EXPORT_FORMAT = "jaxmotion-model"
-# Shipped models: name -> file in jaxmotion/pretrained/ (its README states the data, the command and the licence).
-PRETRAINED = {"bandai": "bandai.msgpack"}
+PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "pretrained"
+
+
+def shipped_models() -> dict:
+    """Returns `jaxmotion/pretrained/models.json`: every shipped model (file, method, data, licence, size, metrics), the
+    default's name and the rule that chose it. Its model cards (`pretrained/README.md`) are generated from it."""
+    return json.loads((PRETRAINED_DIR / "models.json").read_text())
+
+
+def _pretrained() -> dict[str, str]:
+    reg = shipped_models()
+    files = {m["name"]: m["file"] for m in reg["models"]}
+    return {"bandai": files[reg["default"]], **files}
+
+
+# Shipped models: name -> file in jaxmotion/pretrained/; "bandai" is the default one (`shipped_models`).
+PRETRAINED = _pretrained()
 
 
 def pretrained_path(name: str) -> Path:
     """Returns the file of the shipped model `name` (`PRETRAINED`)."""
     if name not in PRETRAINED:
         raise FileNotFoundError(f"{name}: not a shipped model (shipped: {sorted(PRETRAINED)})")
-    path = Path(__file__).resolve().parent.parent / "pretrained" / PRETRAINED[name]
+    path = PRETRAINED_DIR / PRETRAINED[name]
     if not path.is_file():
         raise FileNotFoundError(f"{path}: the shipped model {name!r} is missing from this installation")
     return path
 
 
-def export(run_dir: str | Path, out: str | Path, stages: tuple[str, ...] | None = None) -> Path:
+def export(
+    run_dir: str | Path, out: str | Path, stages: tuple[str, ...] | None = None, *, float16: bool = False,
+    manifest: dict | None = None,
+) -> Path:
     """Writes the trained run at `run_dir` as one inference-only file (msgpack: predictor.json's contents, the parameters
-    of every stage, or of `stages`, and their shapes) and returns its path; `load` and `jaxmotion predict` accept it."""
+    of every stage, or of `stages`, and their shapes) and returns its path; `load` and `jaxmotion predict` accept it.
+
+    `float16`: float32 parameters are stored as float16 (half the file; `read_model` turns them back into
+    float32). `manifest`: entries added to the run's predictor.json contents (e.g. a `facing` measured after training).
+    """
     from flax import serialization
 
     from jaxmotion.train.runner import param_shapes
 
     model = MotionPredictor(run_dir, stages)
     params = {stage: jax.tree.map(np.asarray, p) for stage, p in model.params.items()}
+    shapes = {stage: param_shapes(p) for stage, p in params.items()}
+    if float16:
+        params = jax.tree.map(lambda v: v.astype(np.float16) if v.dtype == np.float32 else v, params)
     payload = {
-        "format": EXPORT_FORMAT, "version": VERSION, "predictor": json.dumps(model.manifest),
-        "shapes": json.dumps({stage: param_shapes(p) for stage, p in params.items()}), "params": params,
+        "format": EXPORT_FORMAT, "version": VERSION, "predictor": json.dumps({**model.manifest, **(manifest or {})}),
+        "shapes": json.dumps(shapes), "params": params, "storage": "float16" if float16 else "as trained",
     }
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -300,6 +425,8 @@ def read_model(path: str | Path) -> MotionPredictor:
     if not isinstance(payload, dict) or payload.get("format") != EXPORT_FORMAT:
         raise CheckpointError(f"{path}: not an exported jaxmotion model (jaxmotion export RUN --out FILE writes one)")
     params = {stage: jax.tree.map(jnp.asarray, p) for stage, p in payload["params"].items()}
+    if payload.get("storage") == "float16":  # stored at half size (`export(float16=True)`), computed in float32
+        params = jax.tree.map(lambda v: v.astype(jnp.float32) if v.dtype == jnp.float16 else v, params)
     if json.loads(payload["shapes"]) != {stage: param_shapes(p) for stage, p in params.items()}:
         raise CheckpointError(f"{path}: its parameters do not match the shapes it lists (damaged file?)")
     return MotionPredictor.from_parts(json.loads(payload["predictor"]), params, path)
