@@ -90,6 +90,7 @@ ON_SKELETON = "projection_bandai.json"  # experiments/projection_effect.py  # be
 # benchmarks/run.py: three full runs of the same code, back to back.
 SPEED_RUNS = ["cpu_amd_bracket_full_run1.json", "cpu_amd_bracket_full_run2.json", "cpu_amd_bracket_full_run3.json"]
 DIFFUSION_SPEED = "diffusion_cpu.json"
+REPRO_COST = "repro_cost_cpu.json"  # benchmarks/repro_cost.py: each HumanEva-I release config's stages, old and new source
 SCALING = {"dlow": [f"scaling_cpu_dlow_run{i}.json" for i in (1, 2, 3)],
            "divsamp": [f"scaling_cpu_divsamp_run{i}.json" for i in (1, 2, 3)]}
 TIME_TO_QUALITY = "time_to_quality_2026-12-05.json"
@@ -547,6 +548,29 @@ def speed_table() -> list[str]:
     return lines
 
 
+def repro_cost_section() -> list[str]:
+    """Returns the section on what reproducing each HumanEva-I release config costs (`benchmarks/repro_cost.py`)."""
+    from benchmarks.repro_cost import table
+
+    doc = _bench(REPRO_COST)
+    m = doc["machine"]
+    base = (f" The base columns are the same configs on the source of `{doc['base_label']}`, measured in the same run."
+            if doc.get("base") else "")
+    return [
+        "## What reproduction costs",
+        "",
+        "Each method's HumanEva-I config at the release's settings and budget: seconds per training step of every",
+        "stage (its own jitted train step, on one batch of its own batch source), the share of the machine's measured",
+        "float32 peak its matrix products reach, and the hours its budget takes on this CPU." + base,
+        "",
+        table(doc),
+        "",
+        f"How measured: `{doc['command']}` ({m['cpu']}, {m['logical_cpus']} logical CPUs; measured peak "
+        f"{doc['peak_gflops']:.0f} GFLOP/s; `{REPRO_COST}`). GPU: `bash benchmarks/gpu.sh` runs the same script.",
+        "",
+    ]
+
+
 def benchmarks_page() -> str:
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from benchmarks.harness import Settings
@@ -578,6 +602,7 @@ def benchmarks_page() -> str:
         "",
         re.sub(r"^Run \S+ on ", "Run on ", render(run1), count=1, flags=re.M),  # the date is in the JSON
         "",
+        *repro_cost_section(),
         "## Diffusion sampling",
         "",
         "DDIM as one compiled `lax.scan` in jaxmotion against the reference implementation's Python loop over steps.",
