@@ -90,7 +90,8 @@ ON_SKELETON = "projection_bandai.json"  # experiments/projection_effect.py  # be
 # benchmarks/run.py: three full runs of the same code, back to back.
 SPEED_RUNS = ["cpu_amd_bracket_full_run1.json", "cpu_amd_bracket_full_run2.json", "cpu_amd_bracket_full_run3.json"]
 DIFFUSION_SPEED = "diffusion_cpu.json"
-REPRO_COST = "repro_cost_cpu.json"  # benchmarks/repro_cost.py: each HumanEva-I release config's stages, old and new source
+# benchmarks/repro_cost.py: each HumanEva-I release config's stages; the GRU decoders' configs beside the earlier source.
+REPRO_COST = ["repro_cost_cpu_decoders.json", "repro_cost_cpu_gcns.json"]
 SCALING = {"dlow": [f"scaling_cpu_dlow_run{i}.json" for i in (1, 2, 3)],
            "divsamp": [f"scaling_cpu_divsamp_run{i}.json" for i in (1, 2, 3)]}
 TIME_TO_QUALITY = "time_to_quality_2026-12-05.json"
@@ -552,10 +553,14 @@ def repro_cost_section() -> list[str]:
     """Returns the section on what reproducing each HumanEva-I release config costs (`benchmarks/repro_cost.py`)."""
     from benchmarks.repro_cost import table
 
-    doc = _bench(REPRO_COST)
-    m = doc["machine"]
-    base = (f" The base columns are the same configs on the source of `{doc['base_label']}`, measured in the same run."
-            if doc.get("base") else "")
+    docs = [_bench(f) for f in REPRO_COST]
+    merged = dict(docs[0], new=[r for d in docs for r in d["new"]], base=[r for d in docs for r in d.get("base", [])])
+    labels = sorted({d["base_label"] for d in docs if d.get("base")})
+    base = (f" The base columns are the same configs on the source of {', '.join(labels)}, measured in the same run"
+            " (alternating, each stage's faster round kept); `-` where only the current source was measured (unchanged code)."
+            if labels else "")
+    how = "; ".join(f"`{d['command']}` (measured peak {d['peak_gflops']:.0f} GFLOP/s, `{f}`)" for d, f in zip(docs, REPRO_COST))
+    m = docs[0]["machine"]
     return [
         "## What reproduction costs",
         "",
@@ -563,10 +568,11 @@ def repro_cost_section() -> list[str]:
         "stage (its own jitted train step, on one batch of its own batch source), the share of the machine's measured",
         "float32 peak its matrix products reach, and the hours its budget takes on this CPU." + base,
         "",
-        table(doc),
+        table(merged),
         "",
-        f"How measured: `{doc['command']}` ({m['cpu']}, {m['logical_cpus']} logical CPUs; measured peak "
-        f"{doc['peak_gflops']:.0f} GFLOP/s; `{REPRO_COST}`). GPU: `bash benchmarks/gpu.sh` runs the same script.",
+        f"How measured: {how}; {m['cpu']}, {m['logical_cpus']} logical CPUs, shared with other jobs while measured (the",
+        "peak is measured in the same run, so the shares are of what the machine gave). GPU: `bash benchmarks/gpu.sh`",
+        "runs the same script (not measured: no GPU at hand).",
         "",
     ]
 
