@@ -26,7 +26,8 @@ _spec.loader.exec_module(generate)
 REMOVED = {"dense_init": "torch", "bn_running_var": "unbiased", "test_eps": "independent"}
 # Options added later, whose default is what the code did before them.
 ADDED = {"dedupe_members": False, "k_protocol": "top_k", "micro_batches": 1, "split": "test", "precision": "float32",
-         "train_sampler": "windows", "mm_ground_truth": None, "mm_deviation": None}
+         "train_sampler": "windows", "mm_ground_truth": None, "mm_deviation": None,
+         "batch_norm": "global"}
 # Set per run on the command line (`--data`, `--seed`), or what was evaluated rather than trained (`eval_k`).
 PER_RUN = {"dataset", "seed", "eval_k"}
 
