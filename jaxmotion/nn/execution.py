@@ -2,8 +2,9 @@
 
 A model file holds its paper's equations; how they run on a machine is `Execution`, passed in whole
 by the method (`jaxmotion.methods.common.execution(cfg)`) to every model it builds. Every choice but
-`precision` gives the same numbers up to the order of float sums (each fast form is tested against
-the readable definition); `precision="bf16"` rounds the weight products' operands (nn/precision.py).
+`precision` and `batch_norm` gives the same numbers up to the order of float sums (each fast form is
+tested against the readable definition); `precision="bf16"` rounds the weight products' operands
+(nn/precision.py), and `batch_norm="per_device"` normalises each device's rows by their own moments.
 The A/B measurements behind each default are in benchmarks/results/optimisations.md (`benchmarks/ab.py --ab NAME`).
 
 This module imports nothing but the standard library, so the config layer reads `PRECISIONS` from
