@@ -112,6 +112,7 @@ def measure_config(config: str, data: str | None, repeats: int, stages: set[str]
 
 def source_tree(rev: str, into: Path) -> Path:
     """Returns a folder holding the files of git revision `rev` of this repository (`git archive`)."""
+    into.mkdir(parents=True, exist_ok=True)
     tar = into / "src.tar"
     subprocess.run(["git", "-C", str(ROOT), "archive", "-o", str(tar), rev], check=True)
     with tarfile.open(tar) as t:
@@ -196,6 +197,7 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--rounds", type=int, default=1, help="measure every config this many times, trees alternating")
     ap.add_argument("--base", default=None, help="also measure git revision BASE's source, side by side")
+    ap.add_argument("--rev", default=None, help="measure git revision REV's source instead of this checkout's")
     ap.add_argument("--base-label", default=None, help="how the table names the base (default: BASE)")
     ap.add_argument("--out", type=Path, default=None)
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
@@ -215,11 +217,13 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     # The command as the docs print it: the base revision written as BASE (docs name no commits), home as ~.
     shown = ["BASE" if args.base and a == args.base else a.replace(str(Path.home()), "~") for a in argv]
-    doc = {"machine": m, "peak_gflops": peak, "base_rev": args.base, "base_label": args.base_label or "BASE",
+    doc = {"machine": m, "peak_gflops": peak, "base_rev": args.base, "rev": args.rev, "base_label": args.base_label or "BASE",
            "new": [], "base": [], "command": "python benchmarks/repro_cost.py " + " ".join(shown)}
     with tempfile.TemporaryDirectory() as d:
         base_src = source_tree(args.base, Path(d)) if args.base else None
-        trees = [("new", ROOT)] + ([("base", base_src)] if base_src is not None else [])
+        # --rev: the source of that revision alone in the "new" columns (a config that needs it).
+        new_src = source_tree(args.rev, Path(d) / "rev") if args.rev else ROOT
+        trees = [("new", new_src)] + ([("base", base_src)] if base_src is not None else [])
         runs = {(name, c): [] for name, _ in trees for c in configs}
         # Rounds alternate the trees config by config, so a stretch of a slower machine (other jobs on a
         # shared CPU) falls on both; each stage keeps its fastest round.
