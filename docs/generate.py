@@ -91,7 +91,7 @@ ON_SKELETON = "projection_bandai.json"  # experiments/projection_effect.py  # be
 SPEED_RUNS = ["cpu_amd_bracket_full_run1.json", "cpu_amd_bracket_full_run2.json", "cpu_amd_bracket_full_run3.json"]
 DIFFUSION_SPEED = "diffusion_cpu.json"
 # benchmarks/repro_cost.py: each HumanEva-I release config's stages; the GRU decoders' configs beside the earlier source.
-REPRO_COST = ["repro_cost_cpu_decoders.json", "repro_cost_cpu_gcns.json"]
+REPRO_COST = ["repro_cost_cpu_decoders.json", "repro_cost_cpu_gcns.json", "repro_cost_cpu_diffusion.json"]
 SCALING = {"dlow": [f"scaling_cpu_dlow_run{i}.json" for i in (1, 2, 3)],
            "divsamp": [f"scaling_cpu_divsamp_run{i}.json" for i in (1, 2, 3)]}
 TIME_TO_QUALITY = "time_to_quality_2026-12-05.json"
@@ -573,8 +573,9 @@ def repro_cost_section() -> list[str]:
         f"How measured: {how}; {m['cpu']}, {m['logical_cpus']} logical CPUs, shared with other jobs while measured (the",
         "peak is measured in the same run, so the shares are of what the machine gave). Each figure is one round of a few",
         "calls, and a stretch slowed by other jobs shows: the MOJO VAE+DCT+5 Q step's current figure is one (the same",
-        "decoder code ran the VAE+DCT+20 Q step in 0.74 s). GPU: `bash benchmarks/gpu.sh` runs the same script (not",
-        "measured: no GPU at hand).",
+        "decoder code ran the VAE+DCT+20 Q step in 0.74 s; two alternating rounds of that step alone on a loaded",
+        "stretch, `repro_cost_cpu_mojo5_q_rounds.json`: 1.16 s before, 1.01 s after). GPU: `bash benchmarks/gpu.sh`",
+        "runs the same script (not measured: no GPU at hand).",
         "",
     ]
 
