@@ -10,6 +10,8 @@
 #                      the CUDA jax installed)
 #   OUT/scaling.md     benchmarks/scaling.py --platform gpu: 1, 2, 4, ... GPUs in one process, and
 #   OUT/scaling.json   1 and 2 processes (one GPU each) when there are two GPUs or more
+#   OUT/repro_cost.json  benchmarks/repro_cost.py: seconds per training step and hours to the release budget of
+#                      each HumanEva-I config (DATA=/path/to/data_3d_humaneva15.npz; skipped without it)
 # Commit OUT/scaling.md under benchmarks/results/ and add its line to benchmarks/results/README.md.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -48,4 +50,9 @@ if [ "$ngpu" -ge 2 ]; then processes+=(2); fi
 # Every device and process count must divide the global batch (64) and the evaluation batch (64).
 python benchmarks/scaling.py --platform gpu --devices "${devices[@]}" --processes "${processes[@]}" --out "$out/scaling" \
   2> "$out/scaling.log"
+if [ -n "${DATA:-}" ]; then
+  python benchmarks/repro_cost.py --data "$DATA" --out "$out/repro_cost.json" --configs \
+    experiments/configs/dlow_humaneva.py,experiments/configs/mojo_vae_dct5_humaneva.py,experiments/configs/mojo_vae_dct20_humaneva.py,experiments/configs/divsamp_humaneva.py,experiments/configs/gsps_humaneva.py \
+    > "$out/repro_cost.txt" 2>&1 || echo "repro_cost FAILED: see $out/repro_cost.txt"
+fi
 echo "wrote $out"

@@ -1,6 +1,10 @@
 """Where the time goes: per-op profiles of benchmark cases, jaxmotion (XLA thunks) and PyTorch eager (ATen ops).
 
     python benchmarks/op_profile.py --cases dlow/sample/b64/k50/t60,dlow/train_cvae/b64/t60
+    python benchmarks/op_profile.py --config experiments/configs/dlow_humaneva.py --data DATA --stages dlow_k50
+
+With `--config`, the training steps of a config file's stages as `jaxmotion run` builds them
+(`repro_cost.stage_steps`, jaxmotion only) instead of the benchmark's cases.
 
 jaxmotion: `jax.profiler.trace` with `--xla_cpu_enable_xprof_traceme`, every XLA:CPU thunk's wall
 time summed by name (matrix products run as `ynn_fusion` / `xnn_fusion` / `dot` thunks, often with
@@ -43,11 +47,16 @@ def parse_case(text: str) -> Case:
 
 
 def jax_profile(case: Case, s: Settings, runs: int) -> dict:
-    import jax
-
     from benchmarks import jax_bench
 
     run, _, _ = getattr(jax_bench.Builders(s), case.model)(case)
+    return jax_profile_run(run, runs)
+
+
+def jax_profile_run(run, runs: int) -> dict:
+    """Returns `{"wall_s", "ops"}`: `run()`'s wall time and every XLA thunk's time per call, by name."""
+    import jax
+
     for _ in range(2):
         run()
     t0 = time.perf_counter()
@@ -132,7 +141,21 @@ def main():
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--framework", choices=("jax", "torch", "both"), default="both")
     ap.add_argument("--out", help="also write the raw per-op times as JSON here")
+    ap.add_argument("--config", help="profile this config file's training stages instead of --cases")
+    ap.add_argument("--data", default=None, help="with --config: the dataset path (default: the config's)")
+    ap.add_argument("--stages", default="", help="with --config: only these stages, comma-separated")
     args = ap.parse_args()
+    if args.config:
+        from benchmarks.repro_cost import stage_steps
+
+        raw = {}
+        for cfg, stage, run, _, _ in stage_steps(args.config, args.data, set(filter(None, args.stages.split(",")))):
+            print(f"{cfg.name}/{stage.name}")
+            raw[f"{cfg.name}/{stage.name}"] = {"jax": (p := jax_profile_run(run, args.runs))}
+            print("\n".join(summary("jax", p)), flush=True)
+        if args.out:
+            Path(args.out).write_text(json.dumps(raw, indent=1))
+        return
     s = Settings()
     raw = {}
     for text in args.cases.split(","):

@@ -71,7 +71,7 @@ def run_setting(s: dict, args) -> dict:
         for i in range(s["processes"]):
             cmd = [sys.executable, __file__, "--worker", "--workdir", str(Path(tmp) / "work"), "--steps", str(args.steps),
                    "--warmup", str(args.warmup), "--batch", str(args.batch), "--windows", str(args.windows), "--k", str(args.k),
-                   "--eval-batch", str(args.eval_batch), "--method", args.method] + (["--tiny"] if args.tiny else [])
+                   "--eval-batch", str(args.eval_batch), "--method", args.method, "--batch-norm", args.batch_norm] + (["--tiny"] if args.tiny else [])
             if s["distributed"]:
                 cmd += ["--coordinator-address", f"127.0.0.1:{port}", "--num-processes", str(s["processes"]), "--process-id", str(i)]
             procs.append(subprocess.Popen(cmd, env=_env(args.platform, s["devices"], i, s["processes"]), stdout=subprocess.PIPE,
@@ -111,7 +111,7 @@ def worker(args) -> None:
         sizes = dict(hidden=16, nz=8) if args.tiny else {}
         method_config = DivSampConfig(cvae_num_steps=num_steps, cvae_batch_size=args.batch, **sizes)
     cfg = experiment.resolve(Config(method=args.method, method_config=method_config, eval_k=(args.k,), max_test_windows=args.windows,
-                                    eval_batch=args.eval_batch))
+                                    eval_batch=args.eval_batch, batch_norm=args.batch_norm))
     prep = experiment.prepare(experiment.load_data(cfg), cfg.max_test_windows)
     method = experiment.get_method(cfg.method)
     stage = method.stages(cfg, prep)[0]  # the CVAE
@@ -220,6 +220,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--windows", type=int, default=256, help="test windows to predict (evenly spaced, at most all 280)")
     p.add_argument("--k", type=int, default=50)
     p.add_argument("--eval-batch", type=int, default=64)
+    p.add_argument("--batch-norm", choices=("global", "per_device"), default="global",
+                   help="Config.batch_norm: BatchNorm moments of the global batch (exact) or of each device's rows")
     p.add_argument("--tiny", action="store_true", help="smoke test: tiny network, few steps and windows")
     p.add_argument("--out", default=None, help="also write the rows as JSON and the table as Markdown here (a path without suffix)")
     p.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)

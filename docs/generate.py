@@ -95,6 +95,8 @@ ON_SKELETON = "projection_bandai.json"  # experiments/projection_effect.py  # be
 # benchmarks/run.py: three full runs of the same code, back to back.
 SPEED_RUNS = ["cpu_amd_bracket_full_run1.json", "cpu_amd_bracket_full_run2.json", "cpu_amd_bracket_full_run3.json"]
 DIFFUSION_SPEED = "diffusion_cpu.json"
+# benchmarks/repro_cost.py: each HumanEva-I release config's stages; the GRU decoders' configs beside the earlier source.
+REPRO_COST = ["repro_cost_cpu_decoders.json", "repro_cost_cpu_gcns.json", "repro_cost_cpu_diffusion.json"]
 SCALING = {"dlow": [f"scaling_cpu_dlow_run{i}.json" for i in (1, 2, 3)],
            "divsamp": [f"scaling_cpu_divsamp_run{i}.json" for i in (1, 2, 3)]}
 TIME_TO_QUALITY = "time_to_quality_2026-12-05.json"
@@ -850,6 +852,37 @@ def speed_table() -> list[str]:
     return lines
 
 
+def repro_cost_section() -> list[str]:
+    """Returns the section on what reproducing each HumanEva-I release config costs (`benchmarks/repro_cost.py`)."""
+    from benchmarks.repro_cost import table
+
+    docs = [_bench(f) for f in REPRO_COST]
+    merged = dict(docs[0], new=[r for d in docs for r in d["new"]], base=[r for d in docs for r in d.get("base", [])])
+    labels = sorted({d["base_label"] for d in docs if d.get("base")})
+    base = (f" The base columns are the same configs on the source of {', '.join(labels)}, measured in the same run"
+            " (alternating, each stage's faster round kept); `-` where only the current source was measured (unchanged code)."
+            if labels else "")
+    how = "; ".join(f"`{d['command']}` (measured peak {d['peak_gflops']:.0f} GFLOP/s, `{f}`)" for d, f in zip(docs, REPRO_COST))
+    m = docs[0]["machine"]
+    return [
+        "## What reproduction costs",
+        "",
+        "Each method's HumanEva-I config at the release's settings and budget: seconds per training step of every",
+        "stage (its own jitted train step, on one batch of its own batch source), the share of the machine's measured",
+        "float32 peak its matrix products reach, and the hours its budget takes on this CPU." + base,
+        "",
+        table(merged),
+        "",
+        f"How measured: {how}; {m['cpu']}, {m['logical_cpus']} logical CPUs, shared with other jobs while measured (the",
+        "peak is measured in the same run, so the shares are of what the machine gave). Each figure is one round of a few",
+        "calls, and a stretch slowed by other jobs shows: the MOJO VAE+DCT+5 Q step's current figure is one (the same",
+        "decoder code ran the VAE+DCT+20 Q step in 0.74 s; two alternating rounds of that step alone on a loaded",
+        "stretch, `repro_cost_cpu_mojo5_q_rounds.json`: 1.16 s before, 1.01 s after). GPU: `bash benchmarks/gpu.sh`",
+        "runs the same script (not measured: no GPU at hand).",
+        "",
+    ]
+
+
 def benchmarks_page() -> str:
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from benchmarks.harness import Settings
@@ -889,6 +922,8 @@ def benchmarks_page() -> str:
         "",
         *details(f"Every table of `{SPEED_RUNS[0]}`",
                  re.sub(r"^Run \S+ on ", "Run on ", render(run1), count=1, flags=re.M).splitlines()),  # the date is in the JSON
+        "",
+        *repro_cost_section(),
         "## Diffusion sampling",
         "",
         "DDIM as one compiled `lax.scan` in jaxmotion against the reference implementation's Python loop over steps.",

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from jaxmotion.errors import ConfigError
-from jaxmotion.nn.execution import PRECISIONS
+from jaxmotion.nn.execution import BATCH_NORMS, PRECISIONS
 
 
 @dataclasses.dataclass(slots=True)  # slots: setting a misspelt attribute (`c.ckpt_evry = 7`) is an error, as in every method config
@@ -89,6 +89,10 @@ class Config:
     # bfloat16 instructions (or a GPU / TPU); its effect on speed and on the metrics is measured in
     # benchmarks/results/bf16.md. GSPS's flow prior, MotionMap and the metrics keep float32 always.
     precision: str = "float32"
+    # BatchNorm's training moments on several devices (DivSamp; jaxmotion/nn/execution.py `Execution.batch_norm`):
+    # "global" (default, exact: any device count gives one device's numbers) or "per_device" (each device's
+    # rows, as PyTorch DistributedDataParallel without SyncBatchNorm: no collective per layer, other numbers).
+    batch_norm: str = "global"
     # Gradient accumulation: each device takes its share of every batch in `micro_batches` equal
     # micro-batches, one after another, and the optimiser steps once on their mean gradient (one
     # all-reduce per step): a global batch too large for the devices' memory. Equal to the whole batch
@@ -195,7 +199,7 @@ SEED_LIMIT = 2**32  # jax.random.key keeps a seed's low 32 bits: 2**32 would be 
 
 _CHOICES = {"split": ("test", "val"), "train_sampler": ("windows", "sequences", "subjects"), "mm_deviation": (None, "divsamp", "comusion", "gsps"),
             "mm_ground_truth": (None, "test", "train", "motionmap-test", "motionmap-train"),
-            "precision": PRECISIONS}
+            "precision": PRECISIONS, "batch_norm": BATCH_NORMS}
 # `Config`'s intervals: (field, rule, what the rule asks), checked once the field's type is right.
 _CONFIG_RULES = (
     *((n, lambda v: v >= 1, ">= 1") for n in ("ckpt_every", "log_every", "eval_batch", "micro_batches")),

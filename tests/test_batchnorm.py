@@ -72,3 +72,56 @@ def test_matches_pytorch_batchnorm1d():
     np.testing.assert_allclose(
         np.asarray(BatchNorm(use_running_average=True).apply(v, x)), bn(torch.from_numpy(np.array(x))).detach().numpy(), rtol=1e-4, atol=1e-5
     )
+
+
+_PER_DEVICE_WORKER = r'''
+import json, sys
+import jax, jax.numpy as jnp, numpy as np, optax
+from jaxmotion.nn.batchnorm import BatchNorm
+from jaxmotion.train.distributed import data_mesh
+from jaxmotion.train.loop import bn_optimizer, create_state, make_bn_train_step
+
+x = jnp.asarray(np.random.default_rng(0).normal(1.0, 2.0, (8, 3)), jnp.float32)
+out = {}
+for per_device in (False, True):
+    bn = BatchNorm(use_running_average=False, per_device=per_device)
+    def loss(v, _frozen, batch, _key):
+        y, upd = bn.apply(v, batch, mutable=["batch_stats"])
+        return jnp.mean(y ** 3 + y), ({}, upd["batch_stats"])
+    v = bn.init(jax.random.key(0), x)
+    step = make_bn_train_step(loss, bn_optimizer(optax.sgd(0.1)), mesh=data_mesh())
+    state = create_state(v, bn_optimizer(optax.sgd(0.1)))
+    hlo = jax.jit(step).lower(state, x, jax.random.key(0)).compile().as_text()
+    new, m = jax.jit(step)(state, x, jax.random.key(0))
+    out[str(per_device)] = {"loss": float(m["loss"]), "stats": jax.tree.map(lambda a: np.asarray(a).tolist(), new.params["batch_stats"]),
+                            "all_reduces": hlo.count(" all-reduce(") + hlo.count(" all-reduce-start(")}
+# Each device's rows alone, on one device: the reference of the per-device mode.
+bn = BatchNorm(use_running_average=False)
+v = bn.init(jax.random.key(0), x)
+halves = [bn.apply(v, h, mutable=["batch_stats"]) for h in (x[:4], x[4:])]
+out["halves"] = {"loss": float(np.mean([jnp.mean(y ** 3 + y) for y, _ in halves])),
+                 "stats": jax.tree.map(lambda *a: np.mean(a, axis=0).tolist(), *[u["batch_stats"] for _, u in halves])}
+json.dump(out, open(sys.argv[1], "w"))
+'''
+
+
+def test_per_device_moments_normalise_each_devices_rows_with_one_all_reduce_per_step(tmp_path):
+    """`BatchNorm(per_device=True)` on 2 devices: each device normalises its own rows (the loss is the mean of
+    the two halves' losses on one device), the running statistics are the two halves' averaged, and the step
+    has one all-reduce (the default, global moments, has one per moment besides)."""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2", JAX_PLATFORMS="cpu")
+    out = tmp_path / "out.json"
+    subprocess.run([sys.executable, "-c", _PER_DEVICE_WORKER, str(out)], env=env, check=True, timeout=300)
+    import json
+
+    r = json.loads(out.read_text())
+    per, glob, halves = r["True"], r["False"], r["halves"]
+    assert per["all_reduces"] == 1 and glob["all_reduces"] > 1
+    np.testing.assert_allclose(per["loss"], halves["loss"], rtol=1e-5)
+    for key in ("mean", "var"):
+        np.testing.assert_allclose(per["stats"][key], halves["stats"][key], rtol=1e-5, atol=1e-6)
+    assert abs(per["loss"] - glob["loss"]) > 1e-4  # the two modes differ on several devices

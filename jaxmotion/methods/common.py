@@ -29,5 +29,5 @@ def adam(lr: float, num_steps: int, lr_fix_fraction: float) -> optax.GradientTra
 
 
 def execution_of(cfg) -> Execution:
-    """Returns how a run's networks execute (nn/execution.py): the config's `precision`, every other choice the default."""
-    return Execution(precision=cfg.precision)
+    """Returns how a run's networks execute (nn/execution.py): the config's `precision` and `batch_norm`, every other choice the default."""
+    return Execution(precision=cfg.precision, batch_norm=cfg.batch_norm)

@@ -165,10 +165,11 @@ class DivSampCVAE(nn.Module):
 
     def setup(self):
         mm, nm = self.execution.precision, self.execution.gcn_node_major
-        self.enc = GCLStack(self.hidden, self.num_residual, precision=mm, node_major=nm)
+        bn = self.execution.batch_norm == "per_device"
+        self.enc = GCLStack(self.hidden, self.num_residual, precision=mm, node_major=nm, per_device_bn=bn)
         self.e_mu = Dense(self.nz, precision=mm)
         self.e_logvar = Dense(self.nz, precision=mm)
-        self.dec = GCLStack(self.hidden, self.num_residual, precision=mm, node_major=nm)
+        self.dec = GCLStack(self.hidden, self.num_residual, precision=mm, node_major=nm, per_device_bn=bn)
         self.d_out = GraphConv(3 * self.n_dct, precision=mm)
 
     def encode(self, cx: Float[ArrayLike, "b j c"], cw: Float[ArrayLike, "b j c"], *, train: bool):
@@ -195,13 +196,14 @@ class GammaHead(nn.Module):
     nh: int
     out: int
     precision: str = "float32"  # the products' (nn/precision.py)
+    per_device_bn: bool = False  # BatchNorm.per_device
 
     @nn.compact
     def __call__(self, p: Float[ArrayLike, "... n"], *, train: bool) -> Float[Array, "... o"]:
         h = Dense(self.nh, precision=self.precision, name="dense_0")(p)
         # Statistics over all leading axes, i.e. over the b * K points, like the release's
         # BatchNorm1d on the (b * nk, n_b) matrix.
-        h = BatchNorm(not train, 0.9, 1e-5, name="bn")(h)
+        h = BatchNorm(not train, 0.9, 1e-5, per_device=self.per_device_bn, name="bn")(h)
         return Dense(self.out, precision=self.precision, name="dense_1")(jnp.tanh(h))
 
 
@@ -227,10 +229,12 @@ class DivSampSampler(nn.Module):
         b = cx.shape[0]
         m = self.num_bases
         mm = self.execution.precision
-        h = GCLStack(self.hidden, self.num_residual, precision=mm, node_major=self.execution.gcn_node_major, name="condition_enc")(cx, train=train)
+        bn = self.execution.batch_norm == "per_device"
+        h = GCLStack(self.hidden, self.num_residual, precision=mm, node_major=self.execution.gcn_node_major,
+                     per_device_bn=bn, name="condition_enc")(cx, train=train)
         h = h.reshape(b, -1)
         base = Dense(m * self.base_dim, precision=mm, name="bases")(h)
-        base = BatchNorm(not train, 0.9, 1e-5, name="bases_bn")(base)
+        base = BatchNorm(not train, 0.9, 1e-5, per_device=bn, name="bases_bn")(base)
         if self.base_tanh:
             base = jnp.tanh(base)
         base = base.reshape(b, m, self.base_dim)  # B, one per window (DivSamp Eq. (8))
@@ -249,8 +253,8 @@ class DivSampSampler(nn.Module):
             sample = lambda kk, lg: sample_coefficients(kk, k, m, kind=self.coefficients, tau=self.tau, logits=lg)
         w = jax.vmap(sample)(batch_rows(lambda n: jax.random.split(k_w, n), b), logits)  # (b, K, M), rows on the simplex
         p = w @ base  # (b, K, n_b): K points of the auxiliary space (DivSamp Eq. (11))
-        mean = GammaHead(self.nh, self.nz, mm, name="mean")(p, train=train)
-        logvar = GammaHead(self.nh, self.nz, mm, name="logvar")(p, train=train)
+        mean = GammaHead(self.nh, self.nz, mm, bn, name="mean")(p, train=train)
+        logvar = GammaHead(self.nh, self.nz, mm, bn, name="logvar")(p, train=train)
         eps = batch_rows(lambda n: jax.random.normal(k_eps, (n, 1 if shared_eps else k, self.nz)), b)
         return jnp.exp(0.5 * logvar) * eps + mean, mean, logvar  # DivSamp Eq. (12)
 

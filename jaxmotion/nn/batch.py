@@ -51,6 +51,29 @@ def batch_rows(draw: Callable[[int], jax.Array], b: int) -> jax.Array:
     return jax.lax.dynamic_slice_in_dim(draw(b * count), index * b, b, axis=0)
 
 
+# While the train step is traced: a list that a BatchNorm with per-device moments appends to, so the
+# step averages the running statistics it returns; None elsewhere. Set only by `local_statistics`.
+_LOCAL: contextvars.ContextVar = contextvars.ContextVar("jaxmotion_local_statistics", default=None)
+
+
+@contextlib.contextmanager
+def local_statistics() -> Iterator[list]:
+    """Traces the code inside, returning a list that is non-empty when a layer kept statistics of its device's rows alone."""
+    seen: list = []
+    token = _LOCAL.set(seen)
+    try:
+        yield seen
+    finally:
+        _LOCAL.reset(token)
+
+
+def note_local_statistics() -> None:
+    """Records, for the train step being traced, that a layer's statistics are its device's own (`local_statistics`)."""
+    seen = _LOCAL.get()
+    if seen is not None and _in_step():
+        seen.append(True)
+
+
 def _in_step() -> bool:
     return DATA in jax.sharding.get_abstract_mesh().manual_axes
 

@@ -10,7 +10,8 @@ here) are flax's, so checkpoints of either kind load into the other.
 
 Inside the data-parallel train step the batch moments are the whole global batch's: each device's
 moments are averaged over the devices (`batch.batch_mean`, equal shares), as one device
-computes them.
+computes them. With `per_device` they are each device's own rows' (no collective; PyTorch
+DistributedDataParallel's default), and the train step averages the running statistics.
 """
 
 from __future__ import annotations
@@ -33,6 +34,8 @@ class BatchNorm(nn.Module):
     # (j, f), numbered j * F + f as in the flattened `(..., J * F)` layout, so the parameters and
     # statistics are the same arrays in either layout; statistics over the middle axes.
     node_major: bool = False
+    # Training moments of each device's rows alone inside the data-parallel step (see the module docstring).
+    per_device: bool = False
 
     @nn.compact
     def __call__(self, x: Float[ArrayLike, "... f"]) -> Float[Array, "... f"]:
@@ -50,10 +53,13 @@ class BatchNorm(nn.Module):
         if self.use_running_average:
             mean, var = ra_mean.value.reshape(view), ra_var.value.reshape(view)
         else:
-            mean = batch.batch_mean(jnp.mean(x, axis=axes, keepdims=True))
-            var = batch.batch_mean(jnp.mean(jnp.square(x - mean), axis=axes, keepdims=True))
+            across = (lambda v: v) if self.per_device else batch.batch_mean
+            mean = across(jnp.mean(x, axis=axes, keepdims=True))
+            var = across(jnp.mean(jnp.square(x - mean), axis=axes, keepdims=True))
             if not self.is_initializing():
-                n = math.prod(x.shape[a] for a in axes) * batch.batch_parts()
+                n = math.prod(x.shape[a] for a in axes) * (1 if self.per_device else batch.batch_parts())
+                if self.per_device:
+                    batch.note_local_statistics()
                 keep = var * (n / (n - 1)) if n > 1 else var  # the unbiased variance
                 m = self.momentum
                 ra_mean.value = m * ra_mean.value + (1.0 - m) * mean.reshape(-1)

@@ -24,7 +24,7 @@ import functools
 import jax
 import jax.numpy as jnp
 
-from jaxmotion.nn.gru import gru_update
+from jaxmotion.nn.gru import gru_gates, gru_update, gru_update_backward
 from jaxmotion.nn.precision import matmul
 
 
@@ -39,6 +39,7 @@ def decoder_step(p, gi_static, residual, carry, z_t, precision="float32"):
     gi = gi_static + matmul(dyn, p["w_dyn"], precision)
     gh = matmul(h, p["w_hh"], precision) + p["b_hh"]
     h2 = gru_update(gi, gh, h)
+    gates = gru_gates(gi, gh)  # the same products as gru_update's (XLA computes them once)
     acts, a = [], h2
     for k, b in p["mlp"]:
         a = jnp.tanh(matmul(a, k, precision) + b)
@@ -46,7 +47,7 @@ def decoder_step(p, gi_static, residual, carry, z_t, precision="float32"):
     y = matmul(a, p["out"][0], precision) + p["out"][1]
     if residual:
         y = y + y_prev
-    return (h2, y), (y, (gi, gh, h2, tuple(acts)))  # h and y_{t-1} are the previous step's h2 and y
+    return (h2, y), (y, (h, gates, tuple(acts)))  # y_{t-1} is the previous step's y, h' the next step's h
 
 
 def _rows(x):
@@ -54,8 +55,8 @@ def _rows(x):
 
 
 def _loop_fwd(p, gi_static, h0, y0, z_seq, residual):
-    _, (ys, saved) = jax.lax.scan(lambda c, z: decoder_step(p, gi_static, residual, c, z), (h0, y0), z_seq)
-    return ys, (p, gi_static, h0, y0, z_seq, ys, saved)
+    (h_last, _), (ys, saved) = jax.lax.scan(lambda c, z: decoder_step(p, gi_static, residual, c, z), (h0, y0), z_seq)
+    return ys, (p, gi_static, h_last, y0, z_seq, ys, saved)
 
 
 @functools.partial(jax.custom_vjp, nondiff_argnums=(5,))
@@ -68,35 +69,38 @@ def _shift(first, seq):
 
 
 def _loop_bwd(residual, res, ct_ys):
-    p, gi_static, h0, y0, z_seq, ys, (gi, gh, h2, acts) = res
+    # The forward pass keeps each step's input state h and its gates (not the pre-activations), so the
+    # backward loop reads them as they are: no state shifted by a step, no sigmoid or tanh recomputed.
+    # Where only the latents' cotangent is used (a frozen decoder: DLow's and MOJO's Q steps), XLA drops
+    # the weight-gradient products after the loop and the per-step outputs that only they read.
+    p, gi_static, h_last, y0, z_seq, ys, (h_prev, gates, acts) = res
     nz = z_seq.shape[-1]
-    h_prev = _shift(h0, h2)
-    dyn = jnp.concatenate([z_seq, _shift(y0, ys)], axis=-1)
     w_dyn_t, w_hh_t = p["w_dyn"].T, p["w_hh"].T
     mlp_t = [k.T for k, _ in p["mlp"]]
     out_t = p["out"][0].T
 
     def back(carry, xs):
         dh, dy_next, dgi_static = carry
-        ct_y, (gi, gh, h, acts) = xs
+        ct_y, (h, gates, acts) = xs
         dy = ct_y + dy_next  # y_t's whole cotangent: the loss's, and the next step's input's
         da = dy @ out_t
         dpres = [None] * len(acts)
         for i in reversed(range(len(acts))):
             dpres[i] = da * (1.0 - acts[i] ** 2)
             da = dpres[i] @ mlp_t[i]
-        _, vjp = jax.vjp(gru_update, gi, gh, h)
-        dgi, dgh, dh_prev = vjp(dh + da)
+        dgi, dgh, dh_prev = gru_update_backward(dh + da, gates, h)
         dh_prev = dh_prev + dgh @ w_hh_t
         ddyn = dgi @ w_dyn_t
         dy_prev = ddyn[..., nz:] + dy if residual else ddyn[..., nz:]
         return (dh_prev, dy_prev, dgi_static + dgi), (ddyn[..., :nz], dy, tuple(dpres), dgi, dgh)
 
-    init = (jnp.zeros_like(h0), jnp.zeros_like(ct_ys[0]), jnp.zeros_like(gi_static))
-    xs = (ct_ys, (gi, gh, h_prev, acts))
+    init = (jnp.zeros_like(h_last), jnp.zeros_like(ct_ys[0]), jnp.zeros_like(gi_static))
+    xs = (ct_ys, (h_prev, gates, acts))
     (dh0, dy0, dgi_static), (dz, dy, dpres, dgi, dgh) = jax.lax.scan(back, init, xs, reverse=True)
     # Each weight's gradient: one product over all steps and rows.
     grad = lambda x, d: (_rows(x).T @ _rows(d), jnp.sum(_rows(d), axis=0))  # noqa: E731
+    h2 = jnp.concatenate([h_prev[1:], h_last[None]], axis=0)  # each step's output state
+    dyn = jnp.concatenate([z_seq, _shift(y0, ys)], axis=-1)
     ins = (h2,) + acts[:-1]
     w_hh, b_hh = grad(h_prev, dgh)
     dp = {

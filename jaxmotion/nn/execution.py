@@ -2,8 +2,9 @@
 
 A model file holds its paper's equations; how they run on a machine is `Execution`, passed in whole
 by the method (`jaxmotion.methods.common.execution(cfg)`) to every model it builds. Every choice but
-`precision` gives the same numbers up to the order of float sums (each fast form is tested against
-the readable definition); `precision="bf16"` rounds the weight products' operands (nn/precision.py).
+`precision` and `batch_norm` gives the same numbers up to the order of float sums (each fast form is
+tested against the readable definition); `precision="bf16"` rounds the weight products' operands
+(nn/precision.py), and `batch_norm="per_device"` normalises each device's rows by their own moments.
 The A/B measurements behind each default are in benchmarks/results/optimisations.md (`benchmarks/ab.py --ab NAME`).
 
 This module imports nothing but the standard library, so the config layer reads `PRECISIONS` from
@@ -16,6 +17,7 @@ import dataclasses
 
 PRECISIONS = ("float32", "bf16")  # `Config.precision`'s choices (nn/precision.py)
 DECODER_BACKWARDS = ("batched", "autodiff")
+BATCH_NORMS = ("global", "per_device")  # `Config.batch_norm`'s choices
 
 
 @dataclasses.dataclass(frozen=True)
@@ -41,12 +43,20 @@ class Execution:
     # The graph-convolution stacks' inner layout (DivSamp, GSPS; nn/gcn.py `GCLStack.node_major`):
     # node-major `(J, ..., F)` inside, batch-major `(..., J, F)` at the ends.
     gcn_node_major: bool = True
+    # BatchNorm's training moments on several devices (DivSamp's GCNs and sampler): "global", those of the
+    # whole global batch (an all-reduce per layer; every device count gives one device's numbers), or
+    # "per_device", each device's own rows (PyTorch DistributedDataParallel's default without SyncBatchNorm:
+    # no collective inside the step, the running statistics averaged in the step's one all-reduce). Like
+    # precision, "per_device" changes the numbers (on one device the two are the same).
+    batch_norm: str = "global"
 
     def __post_init__(self):
         if self.precision not in PRECISIONS:
             raise ValueError(f"Execution.precision must be one of {PRECISIONS}, got {self.precision!r}")
         if self.decoder_backward not in DECODER_BACKWARDS:
             raise ValueError(f"Execution.decoder_backward must be one of {DECODER_BACKWARDS}, got {self.decoder_backward!r}")
+        if self.batch_norm not in BATCH_NORMS:
+            raise ValueError(f"Execution.batch_norm must be one of {BATCH_NORMS}, got {self.batch_norm!r}")
         if isinstance(self.decoder_unroll, bool) or not isinstance(self.decoder_unroll, int) or self.decoder_unroll < 1:
             raise ValueError(f"Execution.decoder_unroll must be an integer >= 1, got {self.decoder_unroll!r}")
         for name in ("decoder_remat", "gcn_node_major"):

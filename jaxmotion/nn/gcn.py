@@ -68,12 +68,14 @@ class GCLBlock(nn.Module):
     features: int
     precision: str = "float32"  # as GraphConv.precision
     node_major: bool = False  # as GraphConv.node_major
+    per_device_bn: bool = False  # BatchNorm.per_device: each device's own training moments
 
     @nn.compact
     def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool) -> Float[Array, "... j o"]:
         x = GraphConv(self.features, precision=self.precision, node_major=self.node_major, name="gc")(h)
         bn = BatchNorm(
-            use_running_average=not train, momentum=0.9, epsilon=1e-5, node_major=self.node_major, name="bn",
+            use_running_average=not train, momentum=0.9, epsilon=1e-5, node_major=self.node_major,
+            per_device=self.per_device_bn, name="bn",
         )
         if self.node_major:
             return jnp.tanh(bn(x))
@@ -87,11 +89,12 @@ class ResidualGCLBlock(nn.Module):
     features: int
     precision: str = "float32"  # as GraphConv.precision
     node_major: bool = False  # as GraphConv.node_major
+    per_device_bn: bool = False  # as GCLBlock.per_device_bn
 
     @nn.compact
     def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool) -> Float[Array, "... j f"]:
-        x = GCLBlock(h.shape[-1], self.precision, self.node_major, name="gcl_0")(h, train=train)
-        x = GCLBlock(self.features, self.precision, self.node_major, name="gcl_1")(x, train=train)
+        x = GCLBlock(h.shape[-1], self.precision, self.node_major, self.per_device_bn, name="gcl_0")(h, train=train)
+        x = GCLBlock(self.features, self.precision, self.node_major, self.per_device_bn, name="gcl_1")(x, train=train)
         return x + h
 
 
@@ -114,13 +117,15 @@ class GCLStack(nn.Module):
     num_residual: int
     precision: str = "float32"  # as GraphConv.precision
     node_major: bool = True
+    per_device_bn: bool = False  # as GCLBlock.per_device_bn
 
     @nn.compact
     def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool) -> Float[Array, "... j o"]:
         nm = self.node_major
         if nm:
             h = jnp.moveaxis(jnp.asarray(h), -2, 0)
-        h = GCLBlock(self.features, self.precision, nm, name="gcl_in")(h, train=train)
+        bn = self.per_device_bn
+        h = GCLBlock(self.features, self.precision, nm, bn, name="gcl_in")(h, train=train)
         for i in range(self.num_residual):
-            h = ResidualGCLBlock(self.features, self.precision, nm, name=f"res_{i}")(h, train=train)
+            h = ResidualGCLBlock(self.features, self.precision, nm, bn, name=f"res_{i}")(h, train=train)
         return jnp.moveaxis(h, 0, -2) if nm else h

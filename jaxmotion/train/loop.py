@@ -38,6 +38,7 @@ from jax.flatten_util import ravel_pytree
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from tqdm.auto import tqdm
 
+from jaxmotion.nn import batch as batch_lib
 from jaxmotion.train import distributed
 from jaxmotion.train.distributed import data_mesh
 from jaxmotion.errors import CheckpointError, ConfigError
@@ -149,14 +150,19 @@ def _data_parallel_step(grads, tx, mesh: Mesh | None, micro_batches: int, *, bat
 
     def local(state: TrainState, batch, key):  # one device's rows of the batch
         device = jax.lax.axis_index(distributed.DATA) if n > 1 else 0
-        if m == 1:
-            with distributed.batch_part(device, n):
-                loss, metrics, g, stats = grads(state.params, state.frozen, batch, key)
-        else:
-            loss, metrics, g, stats = _accumulate(grads, state, batch, key, device, n, m, batch_norm)
+        with batch_lib.local_statistics() as local_stats:
+            if m == 1:
+                with distributed.batch_part(device, n):
+                    loss, metrics, g, stats = grads(state.params, state.frozen, batch, key)
+            else:
+                loss, metrics, g, stats = _accumulate(grads, state, batch, key, device, n, m, batch_norm)
         if n > 1:  # the step's one all-reduce, of one array: between processes each collective costs a round trip
-            flat, unravel = ravel_pytree((loss, metrics, g))
-            loss, metrics, g = unravel(jax.lax.pmean(flat, distributed.DATA))
+            if local_stats:  # per-device BatchNorm moments: each device's running statistics differ, average them too
+                flat, unravel = ravel_pytree((loss, metrics, g, stats))
+                loss, metrics, g, stats = unravel(jax.lax.pmean(flat, distributed.DATA))
+            else:
+                flat, unravel = ravel_pytree((loss, metrics, g))
+                loss, metrics, g = unravel(jax.lax.pmean(flat, distributed.DATA))
         updates, opt_state = tx.update(g, state.opt_state, state.params)
         params = optax.apply_updates(state.params, updates)
         if batch_norm:
