@@ -56,6 +56,7 @@ MODEL_ON_MODEL = frozenset({
     ("jaxmotion.models.dlow", "jaxmotion.models.cvae"),
     ("jaxmotion.models.mojo", "jaxmotion.models.cvae"),
     ("jaxmotion.models.mojo", "jaxmotion.models.dlow"),
+    ("jaxmotion.models.divsamp", "jaxmotion.models.gsps"),  # DivSamp's release trains its CVAE with GSPS's angle loss
 })  # fmt: skip
 
 

@@ -37,7 +37,7 @@ def _body(frames: int = 6, joints: int = 5) -> np.ndarray:
 @pytest.mark.parametrize("edit, match", [
     ("complex", r"'positions' must hold real floating-point numbers \(metres\), got dtype complex128"),
     ("bool", r"'positions' must hold real floating-point numbers \(metres\), got dtype bool"),
-    ("huge", r"'positions': a body 1\.2e\+30 m across .*not a person's 0\.6-2\.6 m; wrong units\?"),
+    ("huge", r"'positions': a body 1\.2e\+30 m across .*not a person's 0\.5-2\.6 m; wrong units\?"),
     ("scale", r"'positions': a body 1\.2e\+06 m across .*\(1e\+06 m per unit\), not a person's"),
 ])  # fmt: skip
 def test_an_npz_clip_that_is_no_person_in_metres_is_refused(tmp_path, edit, match):

@@ -20,9 +20,7 @@ from jaxmotion.data.types import check_finite
 from jaxmotion.errors import DataError
 
 # The largest joint-to-joint distance of a person (an infant to an adult with raised hands; the lower bound as `guess_scale`'s).
-# A body under 0.6 m across (an adult read in inches comes out 0.57 m) is read in the wrong unit far more
-# often than it is an infant's.
-PLAUSIBLE_SIZE = (0.6, 2.6)
+PLAUSIBLE_SIZE = (0.5, 2.6)
 
 
 def body_size(positions: np.ndarray, frames: int = 8) -> float:

@@ -18,10 +18,14 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxmotion.data.plausible import PLAUSIBLE_SIZE, body_size as positions_size
+from jaxmotion.data.plausible import body_size as positions_size
 from jaxmotion.errors import DataError
 from jaxmotion.formats.bvh import CMU_SCALE, Bvh, forward_kinematics, guess_scale, is_ground_skeleton
 
+# A BVH body's size when its unit is guessed: narrower below than the readers' `plausible.PLAUSIBLE_SIZE`, because
+# a body under 0.6 m across (an adult read in inches comes out 0.57 m) is read in the wrong unit far more often
+# than it is an infant's.
+PLAUSIBLE_SIZE = (0.6, 2.6)
 MAX_SIZE_RATIO = 2.0
 # Units a file may be in, offered in the error when its guess fails.
 KNOWN_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "CMU/ASF unit": CMU_SCALE, "foot": 0.3048}
