@@ -37,3 +37,28 @@ def test_every_paper_row_names_a_committed_config():
     for label, _source, nums, config, _predictor in generate.HUMANEVA_ROWS:
         assert len(nums) == len(generate.HE_METRICS), label
         assert (ROOT / "experiments" / "configs" / f"{config}.py").exists(), f"{label}: {config}.py is not committed"
+
+
+def test_a_budget_reduced_config_stands_in_only_without_a_release_run(tmp_path, monkeypatch):
+    monkeypatch.setattr(generate, "EXP", tmp_path)
+    (tmp_path / generate.HUMANEVA).mkdir()
+    full, part = "gsps_humaneva", generate.HUMANEVA_PARTIAL["gsps_humaneva"][0]
+    assert generate.humaneva_runs(full) == []
+    (tmp_path / generate.HUMANEVA / f"{part}_s1_metrics.json").write_text("[]")
+    (tmp_path / generate.HUMANEVA / f"{part}_s0_metrics.json").write_text("[]")
+    assert generate.humaneva_runs(full) == [f"{generate.HUMANEVA}/{part}_s0_metrics.json",
+                                            f"{generate.HUMANEVA}/{part}_s1_metrics.json"]
+    (tmp_path / generate.HUMANEVA / f"{full}_s0_metrics.json").write_text("[]")
+    assert generate.humaneva_runs(full) == [f"{generate.HUMANEVA}/{full}_s0_metrics.json"]
+    assert generate._release_config(part) == full and generate._release_config(full) == full
+
+
+def test_every_stand_in_config_is_committed_with_fewer_steps():
+    from jaxmotion.config import load_config, to_dict
+
+    for full, parts in generate.HUMANEVA_PARTIAL.items():
+        release = generate._flat_steps(to_dict(load_config(ROOT / "experiments" / "configs" / f"{full}.py")))
+        for part in parts:
+            steps = generate._flat_steps(to_dict(load_config(ROOT / "experiments" / "configs" / f"{part}.py")))
+            assert steps.keys() == release.keys() and all(steps[k] <= release[k] for k in steps), part
+            assert any(steps[k] < release[k] for k in steps), f"{part} runs the release's whole budget"
