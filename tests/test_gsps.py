@@ -55,6 +55,56 @@ def test_householder_product_is_orthogonal():
     np.testing.assert_allclose(q @ q.T, np.eye(7), atol=1e-5)
 
 
+def _prior_loss_reference(params, frames):
+    # The prior's loss written out plainly: limb directions divided by their norms, f Q R as two products.
+    v = gsps.bone_vectors(frames, PARENTS)
+    d = (v / jnp.maximum(jnp.linalg.norm(v, axis=-1, keepdims=True), 1e-8)).reshape(frames.shape)
+    logdet = 0.0
+    for i in range(3):
+        lin = params["params"][f"linqr_{i}"]
+        r = jnp.triu(lin["r"], 1) + jnp.diag(jnp.exp(jnp.diag(lin["r"])))
+        d = d @ gsps.householder_product(lin["householder"]) @ r + lin["bias"]
+        logdet = logdet + jnp.sum(jnp.diag(lin["r"]))
+        if i < 2:
+            a = params["params"][f"prelu_{i}"]["log_slope"]
+            logdet = logdet + a * jnp.sum(d < 0, axis=-1)
+            d = jnp.where(d < 0, jnp.exp(a) * d, d)
+    return -jnp.mean(gsps.std_normal_log_prob(d) + logdet)
+
+
+@pytest.mark.slow
+def test_prior_trains_to_the_same_parameters_as_the_plain_formulas():
+    # 20 Adam steps (lr 1e-2, the release's) of `prior_loss` (Q R formed once, limb directions by a reciprocal
+    # square root) and of the formulas written out plainly: the same losses and parameters to float32 rounding.
+    train, _ = _data()
+    prior, p0 = _prior(dim=train.shape[1])
+    opt = optax.adam(1e-2)
+    rng = np.random.default_rng(0)
+    frames = [jnp.asarray(train[rng.integers(0, len(train), 256)]) for _ in range(20)]
+
+    def run(loss_fn):
+        step = jax.jit(lambda p, o, f: _adam_step(opt, lambda p: loss_fn(p, f), p, o))
+        p, o, losses = p0, opt.init(p0), []
+        for f in frames:
+            p, o, loss = step(p, o, f)
+            losses.append(float(loss))
+        return p, losses
+
+    p_fast, l_fast = run(lambda p, f: gsps.prior_loss(prior, p, f, parents=PARENTS)[0])
+    p_ref, l_ref = run(_prior_loss_reference)
+    np.testing.assert_allclose(l_fast, l_ref, rtol=1e-5, atol=1e-5)
+    moved = max(float(jnp.max(jnp.abs(a - b))) for a, b in zip(jax.tree.leaves(p_ref), jax.tree.leaves(p0)))
+    assert moved > 0.05  # the steps moved the parameters by far more than the tolerance
+    for a, b in zip(jax.tree.leaves(p_fast), jax.tree.leaves(p_ref)):
+        np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-5)
+
+
+def _adam_step(opt, loss_fn, p, o):
+    loss, g = jax.value_and_grad(loss_fn)(p)
+    upd, o = opt.update(g, o, p)
+    return optax.apply_updates(p, upd), o, loss
+
+
 def test_limb_directions_are_unit_vectors():
     train, _ = _data()
     d = gsps.limb_directions(jnp.asarray(train[:10]), PARENTS).reshape(10, -1, 3)

@@ -146,7 +146,8 @@ def positions(frames: Float[Array, "... d"]) -> Float[Array, "... j 3"]:
 def limb_directions(frames: Float[Array, "... d"], parents: tuple[int, ...]) -> Float[Array, "... d"]:
     """Returns the unit limb directions `d_i = (p_i - p_parent(i)) / ||.||`, i = 1..J-1, flattened (GSPS Sec. 3.2)."""
     v = bone_vectors(frames, parents)
-    v = v / jnp.maximum(jnp.linalg.norm(v, axis=-1, keepdims=True), 1e-8)
+    # One reciprocal square root of the squared length, not a square root and a division: ||v|| floored at 1e-8.
+    v = v * jax.lax.rsqrt(jnp.maximum(jnp.sum(v * v, axis=-1, keepdims=True), 1e-16))
     return v.reshape(frames.shape)
 
 
@@ -189,7 +190,8 @@ class LinQR(nn.Module):
     def __call__(self, f: Float[Array, "... d"]):
         """Returns `(f Q R + b, log|det| = sum diag R)`."""
         q, r = self._qr()
-        return f @ q @ r + self.b, jnp.broadcast_to(jnp.sum(jnp.diag(self.r)), f.shape[:-1])
+        # Q R formed once (d x d), then one product with the batch, not two.
+        return f @ (q @ r) + self.b, jnp.broadcast_to(jnp.sum(jnp.diag(self.r)), f.shape[:-1])
 
     def inverse(self, y: Float[Array, "... d"]) -> Float[Array, "... d"]:
         """Returns f with `f Q R + b = y`."""
