@@ -159,10 +159,10 @@ def householder_product(u: Float[Array, "n d"]) -> Float[Array, "d d"]:
     """Returns the orthogonal `Q = H_1 H_2 ... H_n` with `H_i = I - 2 u_i u_i^T / (u_i^T u_i)`."""
 
     def step(q, v):
-        v = v / jnp.linalg.norm(v)
         return q - 2.0 * (q @ v)[:, None] * v[None, :], None
 
-    q, _ = jax.lax.scan(step, jnp.eye(u.shape[-1], dtype=u.dtype), u)
+    # The n directions normalised at once, before the loop: only the rank-one updates are serial.
+    q, _ = jax.lax.scan(step, jnp.eye(u.shape[-1], dtype=u.dtype), u / jnp.linalg.norm(u, axis=-1, keepdims=True))
     return q
 
 
