@@ -364,6 +364,20 @@ def test_generator_loss_is_finite_and_differentiable():
     assert 0 < float(m["div_first"]) <= 1 and 0 < float(m["div_rest"]) <= 1
 
 
+def test_exp_l1_diversity_by_shifts_equals_the_upper_triangle_of_pairs():
+    y = jax.random.normal(jax.random.key(0), (3, 4, 10, 50))
+    idx = np.asarray([0, 1, 2, 7, 8, 20, 30, 31, 49])
+
+    def ref(y):
+        y = y[..., idx]
+        i, j = np.triu_indices(y.shape[-2], 1)
+        return jnp.mean(jnp.exp(-jnp.sum(jnp.abs(y[..., i, :] - y[..., j, :]), axis=-1) / 5.0))
+
+    fast = lambda y: gsps._exp_l1_diversity(gsps._take_last(y, idx), 5.0)  # noqa: E731
+    np.testing.assert_allclose(fast(y), ref(y), rtol=1e-6)
+    np.testing.assert_allclose(jax.grad(fast)(y), jax.grad(ref)(y), rtol=1e-5, atol=1e-9)
+
+
 @pytest.mark.slow
 def test_first_part_once_per_noise_trains_to_the_same_parameters_as_every_sample():
     # The first part's GCN once per first-part noise (nk1 rows per window, BatchNorm counting each nk2
