@@ -425,7 +425,7 @@ def test_first_part_once_per_noise_trains_to_the_same_parameters_as_every_sample
         np.testing.assert_allclose(l1, l2, rtol=1e-5)
         scale = max(float(jnp.max(jnp.abs(b))) for b in jax.tree.leaves(g2))
         for a, b in zip(jax.tree.leaves(g1), jax.tree.leaves(g2)):
-            np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-5 * scale)
+            np.testing.assert_allclose(a, b, rtol=1e-3, atol=1e-5 * scale)
     assert jax.tree.structure(v_once) == jax.tree.structure(v_all)
     for path, a in jax.tree_util.tree_leaves_with_path(v_once):
         b = functools.reduce(lambda t, k: t[k.key], path, v_all)
