@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
 import subprocess
 import sys
 import tarfile
@@ -224,6 +225,7 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     # The command as the docs print it: the base revision written as BASE (docs name no commits), home as ~.
     shown = ["BASE" if args.base and a == args.base else a.replace(str(Path.home()), "~") for a in argv]
+    shown = [shlex.quote(a) if " " in a else a for a in shown]  # a label with spaces, quoted as it was typed
     doc = {"machine": m, "peak_gflops": peak, "base_rev": args.base, "rev": args.rev, "base_label": args.base_label or "BASE",
            "new": [], "base": [], "command": "python benchmarks/repro_cost.py " + " ".join(shown)}
     with tempfile.TemporaryDirectory() as d:
