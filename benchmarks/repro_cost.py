@@ -7,8 +7,10 @@
 For each config file (read by path, so a row is added by naming another file) and each of its
 stages that trains, the stage's own jitted train step as `jaxmotion run` builds it
 (`train.runner`: the method's loss, optimiser and frozen inputs) is timed on one batch of the
-stage's own batch source, already on the device (median of `--repeats` calls after two warm-up calls,
-the state donated and stepped on as in training). Its matrix-product FLOPs are counted from the
+stage's own batch source, already on the device (median of `--repeats` calls after three warm-up calls,
+the state donated and stepped on as in training; a step shorter than `MIN_TIMED_S / --repeats` is
+called more often, until about `MIN_TIMED_S` seconds are timed, so a millisecond step's median is
+not that of three calls). Its matrix-product FLOPs are counted from the
 jaxpr (`flops.matmul_flops`, every scan at its length), and the machine's peak is measured in the
 same run (`peak.py`, the best n x n float32 product), so each stage has:
 
@@ -29,6 +31,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
 import subprocess
 import sys
 import tarfile
@@ -42,6 +45,7 @@ sys.path.insert(0, str(ROOT))
 from benchmarks.harness import machine  # noqa: E402
 
 GPU_NOTE = "not measured (no device lent)"
+MIN_TIMED_S = 1.0  # a stage's timed calls together take at least about this long (at most 500 calls)
 
 
 def stage_steps(config: str, data: str | None, stages: set[str] | None = None):
@@ -103,8 +107,12 @@ def measure_config(config: str, data: str | None, repeats: int, stages: set[str]
         t0 = time.perf_counter()
         run()
         compile_s = time.perf_counter() - t0
-        t = measure(run, warmup=1, repeats=repeats)
-        rows.append({"stage": stage.name, "num_steps": stage.num_steps, "step_s": t["median_s"], "min_s": t["min_s"],
+        t0 = time.perf_counter()
+        run()
+        once = time.perf_counter() - t0
+        calls = max(repeats, min(500, int(MIN_TIMED_S / max(once, 1e-6))))
+        t = measure(run, warmup=1, repeats=calls)
+        rows.append({"stage": stage.name, "num_steps": stage.num_steps, "step_s": t["median_s"], "min_s": t["min_s"], "calls": calls,
                      "compile_s": round(compile_s, 1), "matmul_gflop": gflop, "batch": batch})
         print(f"  {cfg.name}/{stage.name}: {t['median_s'] * 1e3:.1f} ms/step, {gflop:.2f} GFLOP", flush=True)
     return {"config": cfg.name if cfg else None, "config_file": config, "data": data, "stages": rows}
@@ -217,6 +225,7 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     # The command as the docs print it: the base revision written as BASE (docs name no commits), home as ~.
     shown = ["BASE" if args.base and a == args.base else a.replace(str(Path.home()), "~") for a in argv]
+    shown = [shlex.quote(a) if " " in a else a for a in shown]  # a label with spaces, quoted as it was typed
     doc = {"machine": m, "peak_gflops": peak, "base_rev": args.base, "rev": args.rev, "base_label": args.base_label or "BASE",
            "new": [], "base": [], "command": "python benchmarks/repro_cost.py " + " ".join(shown)}
     with tempfile.TemporaryDirectory() as d:

@@ -96,7 +96,9 @@ ON_SKELETON = "projection_bandai.json"  # experiments/projection_effect.py  # be
 SPEED_RUNS = ["cpu_amd_bracket_full_run1.json", "cpu_amd_bracket_full_run2.json", "cpu_amd_bracket_full_run3.json"]
 DIFFUSION_SPEED = "diffusion_cpu.json"
 # benchmarks/repro_cost.py: each HumanEva-I release config's stages; the GRU decoders' configs beside the earlier source.
-REPRO_COST = ["repro_cost_cpu_decoders.json", "repro_cost_cpu_gcns.json", "repro_cost_cpu_diffusion.json"]
+REPRO_COST = ["repro_cost_cpu_decoders.json", "repro_cost_cpu_stages.json", "repro_cost_cpu_diffusion.json"]
+# benchmarks/op_profile.py --config: where the time of the GCN stages goes (per-op times, grouped as op_profile groups them).
+REPRO_PROFILE = "op_profile_humaneva_gcns.json"
 SCALING = {"dlow": [f"scaling_cpu_dlow_run{i}.json" for i in (1, 2, 3)],
            "divsamp": [f"scaling_cpu_divsamp_run{i}.json" for i in (1, 2, 3)]}
 TIME_TO_QUALITY = "time_to_quality_2026-12-05.json"
@@ -886,10 +888,11 @@ def repro_cost_section() -> list[str]:
 
     docs = [_bench(f) for f in REPRO_COST]
     merged = dict(docs[0], new=[r for d in docs for r in d["new"]], base=[r for d in docs for r in d.get("base", [])])
-    labels = sorted({d["base_label"] for d in docs if d.get("base")})
-    base = (f" The base columns are the same configs on the source of {', '.join(labels)}, measured in the same run"
-            " (alternating, each stage's faster round kept); `-` where only the current source was measured (unchanged code)."
-            if labels else "")
+    against = [f"{', '.join(Path(r['config_file']).name for r in d['new'])} on the source of {d['base_label']}"
+               for d in docs if d.get("base")]
+    base = (f" The base columns are the same configs ({'; '.join(against)}), measured in the same run"
+            " (alternating, each stage's fastest round kept); `-` where only the current source was measured (unchanged code)."
+            if against else "")
     how = "; ".join(f"`{d['command']}` (measured peak {d['peak_gflops']:.0f} GFLOP/s, `{f}`)" for d, f in zip(docs, REPRO_COST))
     m = docs[0]["machine"]
     return [
@@ -902,13 +905,40 @@ def repro_cost_section() -> list[str]:
         table(merged),
         "",
         f"How measured: {how}; {m['cpu']}, {m['logical_cpus']} logical CPUs, shared with other jobs while measured (the",
-        "peak is measured in the same run, so the shares are of what the machine gave). Each figure is one round of a few",
-        "calls, and a stretch slowed by other jobs shows: the MOJO VAE+DCT+5 Q step's current figure is one (the same",
+        "peak is measured in the same run, so the shares are of what the machine gave). Each figure is the median of a few",
+        "calls (a short step: about a second of calls) in the fastest of the command's rounds (one without `--rounds`),",
+        "and a stretch slowed by other jobs shows: the MOJO VAE+DCT+5 Q step's current figure is one (the same",
         "decoder code ran the VAE+DCT+20 Q step in 0.74 s; two alternating rounds of that step alone on a loaded",
         "stretch, `repro_cost_cpu_mojo5_q_rounds.json`: 1.16 s before, 1.01 s after). GPU: `bash benchmarks/gpu.sh`",
         "runs the same script (not measured: no GPU at hand).",
         "",
+        *repro_profile_lines(),
     ]
+
+
+def repro_profile_lines() -> list[str]:
+    """Returns where the time of DivSamp's and GSPS's stages goes: op_profile's groups, as shares of the profiled op time."""
+    from benchmarks.op_profile import category
+
+    raw = _bench(REPRO_PROFILE)
+    products, elementwise = "matmul (+ fused bias/activation)", "elementwise fusions"
+    lines = ["Where the time of the GCN stages goes (`python benchmarks/op_profile.py --config C --data DATA`, each XLA",
+             "thunk's time grouped as shares of all thunks' time; products include the adjacency products and whatever",
+             "XLA fused into them; other: copies, slices, the thread pool's waits):", "",
+             "| stage | ms / step | products | elementwise | other |",
+             "| --- | ---: | ---: | ---: | ---: |"]
+    for name, rec in raw.items():
+        prof = rec["jax"]
+        total = sum(prof["ops"].values())
+        share = {products: 0.0, elementwise: 0.0}
+        for op, t in prof["ops"].items():
+            group = category("jax", op)
+            if group in share:
+                share[group] += t
+        pct = [100 * share[products] / total, 100 * share[elementwise] / total]
+        lines.append(f"| {name} | {prof['wall_s'] * 1e3:.1f} | {pct[0]:.0f}% | {pct[1]:.0f}% | {100 - sum(pct):.0f}% |")
+    return lines + ["", f"File `{REPRO_PROFILE}`. The measured reason for each stage below 50% of peak is in",
+                    "`benchmarks/results/optimisations.md`, \"The GCN stages of the HumanEva-I configs\".", ""]
 
 
 def benchmarks_page() -> str:

@@ -35,6 +35,19 @@ def test_graph_conv_maps_any_leading_axes():
     np.testing.assert_allclose(np.asarray(layer.apply(p, h)).reshape(12, J, 3), np.asarray(flat), atol=1e-6)
 
 
+def test_repeated_rows_give_the_full_batchs_statistics():
+    # BatchNorm's `repeats`: g rows standing for r equal copies each normalise and update the running
+    # averages as the g * r rows would (the unbiased variance counts g * r values).
+    block = GCLBlock(3)
+    h = _h(b=8, seed=2)
+    v = block.init(jax.random.key(0), h, train=False)
+    full, s_full = block.apply(v, jnp.repeat(h, 5, axis=0), train=True, mutable=["batch_stats"])
+    once, s_once = block.apply(v, h, train=True, repeats=5, mutable=["batch_stats"])
+    np.testing.assert_allclose(jnp.repeat(once, 5, axis=0), full, atol=1e-6)
+    for a, b in zip(jax.tree.leaves(s_once), jax.tree.leaves(s_full)):
+        np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-7)
+
+
 def test_batchnorm_train_mode_normalises_and_updates_running_averages():
     block = GCLBlock(3)
     h = _h(b=64, seed=1)

@@ -55,6 +55,70 @@ def test_householder_product_is_orthogonal():
     np.testing.assert_allclose(q @ q.T, np.eye(7), atol=1e-5)
 
 
+def _householder_one_by_one(u):
+    q = jnp.eye(u.shape[-1])
+    for v in u:
+        v = v / jnp.linalg.norm(v)
+        q = q - 2.0 * (q @ v)[:, None] * v[None, :]  # q H_i
+    return q
+
+
+def test_householder_product_equals_the_reflections_applied_one_by_one():
+    u = jax.random.normal(jax.random.key(0), (42, 42))
+    np.testing.assert_allclose(gsps.householder_product(u), _householder_one_by_one(u), atol=1e-6)
+
+
+def _prior_loss_reference(params, frames):
+    # The prior's loss written out plainly: limb directions divided by their norms, each reflection normalised
+    # in turn, f Q R as two products.
+    v = gsps.bone_vectors(frames, PARENTS)
+    d = (v / jnp.maximum(jnp.linalg.norm(v, axis=-1, keepdims=True), 1e-8)).reshape(frames.shape)
+    logdet = 0.0
+    for i in range(3):
+        lin = params["params"][f"linqr_{i}"]
+        r = jnp.triu(lin["r"], 1) + jnp.diag(jnp.exp(jnp.diag(lin["r"])))
+        d = d @ _householder_one_by_one(lin["householder"]) @ r + lin["bias"]
+        logdet = logdet + jnp.sum(jnp.diag(lin["r"]))
+        if i < 2:
+            a = params["params"][f"prelu_{i}"]["log_slope"]
+            logdet = logdet + a * jnp.sum(d < 0, axis=-1)
+            d = jnp.where(d < 0, jnp.exp(a) * d, d)
+    return -jnp.mean(gsps.std_normal_log_prob(d) + logdet)
+
+
+@pytest.mark.slow
+def test_prior_trains_to_the_same_parameters_as_the_plain_formulas():
+    # 20 Adam steps (lr 1e-2, the release's) of `prior_loss` (directions normalised before the reflections' loop,
+    # Q R formed once, limb directions by a reciprocal square root) and of the formulas written out plainly: the same losses and parameters to float32 rounding.
+    train, _ = _data()
+    prior, p0 = _prior(dim=train.shape[1])
+    opt = optax.adam(1e-2)
+    rng = np.random.default_rng(0)
+    frames = [jnp.asarray(train[rng.integers(0, len(train), 256)]) for _ in range(20)]
+
+    def run(loss_fn):
+        step = jax.jit(lambda p, o, f: _adam_step(opt, lambda p: loss_fn(p, f), p, o))
+        p, o, losses = p0, opt.init(p0), []
+        for f in frames:
+            p, o, loss = step(p, o, f)
+            losses.append(float(loss))
+        return p, losses
+
+    p_fast, l_fast = run(lambda p, f: gsps.prior_loss(prior, p, f, parents=PARENTS)[0])
+    p_ref, l_ref = run(_prior_loss_reference)
+    np.testing.assert_allclose(l_fast, l_ref, rtol=1e-5, atol=1e-5)
+    moved = max(float(jnp.max(jnp.abs(a - b))) for a, b in zip(jax.tree.leaves(p_ref), jax.tree.leaves(p0)))
+    assert moved > 0.05  # the steps moved the parameters by far more than the tolerance
+    for a, b in zip(jax.tree.leaves(p_fast), jax.tree.leaves(p_ref)):
+        np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-5)
+
+
+def _adam_step(opt, loss_fn, p, o):
+    loss, g = jax.value_and_grad(loss_fn)(p)
+    upd, o = opt.update(g, o, p)
+    return optax.apply_updates(p, upd), o, loss
+
+
 def test_limb_directions_are_unit_vectors():
     train, _ = _data()
     d = gsps.limb_directions(jnp.asarray(train[:10]), PARENTS).reshape(10, -1, 3)
@@ -298,6 +362,83 @@ def test_generator_loss_is_finite_and_differentiable():
     assert np.isfinite(float(loss)) and all(np.isfinite(float(x)) for x in m.values())
     assert all(bool(jnp.all(jnp.isfinite(x))) for x in jax.tree.leaves(g["params"]))
     assert 0 < float(m["div_first"]) <= 1 and 0 < float(m["div_rest"]) <= 1
+
+
+def test_exp_l1_diversity_by_shifts_equals_the_upper_triangle_of_pairs():
+    y = jax.random.normal(jax.random.key(0), (3, 4, 10, 50))
+    idx = np.asarray([0, 1, 2, 7, 8, 20, 30, 31, 49])
+
+    def ref(y):
+        y = y[..., idx]
+        i, j = np.triu_indices(y.shape[-2], 1)
+        return jnp.mean(jnp.exp(-jnp.sum(jnp.abs(y[..., i, :] - y[..., j, :]), axis=-1) / 5.0))
+
+    fast = lambda y: gsps._exp_l1_diversity(gsps._take_last(y, idx), 5.0)  # noqa: E731
+    np.testing.assert_allclose(fast(y), ref(y), rtol=1e-6)
+    np.testing.assert_allclose(jax.grad(fast)(y), jax.grad(ref)(y), rtol=1e-5, atol=1e-9)
+
+
+@pytest.mark.slow
+def test_first_part_once_per_noise_trains_to_the_same_parameters_as_every_sample():
+    # The first part's GCN once per first-part noise (nk1 rows per window, BatchNorm counting each nk2
+    # times) against once per sample (nk1 * nk2 rows, the release's): the same loss, gradients and
+    # BatchNorm statistics, so three Adam steps end at the same parameters and running averages.
+    train, _ = _data()
+    gen, v0 = _gen(hidden=32)
+    prior, pp = _prior()
+    pool = gsps.candidate_pool([train[:3000]], 15, 60, 15)
+    bounds = jnp.asarray(gsps.measure_angle_bounds(train[::10], ROLES, 0.1))
+    rng = np.random.default_rng(0)
+    batches = []
+    for s in range(3):
+        w = pool[rng.integers(0, len(pool), 4)]
+        mm, mask = gsps.pseudo_futures(w, pool, rng, t_his=15, his_threshold=0.05, pred_threshold=0.1, num=4)
+        batches.append({"window": jnp.asarray(w), "mm": jnp.asarray(mm), "mm_mask": jnp.asarray(mask, jnp.float32)})
+    # SGD, not Adam: a graph convolution's bias just before a BatchNorm cancels in it, so its gradient is 0
+    # up to rounding, which Adam's normalised step would turn into moves of lr either way in both runs.
+    opt = optax.sgd(1e-4)
+
+    def run(once):
+        loss_fn = functools.partial(
+            gsps.generator_loss, gen, prior=prior, prior_params=pp, t_his=15, parents=PARENTS, parts=PARTS, roles=ROLES,
+            angle_bounds=bounds, n_pre=5, nz=8, nk1=3, nk2=4, lambda_his=100.0, lambda_limb=500.0, lambda_div_first=8.0,
+            lambda_div_rest=25.0, alpha=100.0, beta=300.0, lambda_recon=2.0, lambda_recon_mm=1.0, lambda_prior=0.01,
+            prior_stride=3, lambda_angle=100.0, first_part_once=once,
+        )
+
+        @jax.jit
+        def step(v, o, batch, key):
+            grad_fn = jax.value_and_grad(lambda p: loss_fn({**v, "params": p}, batch=batch, key=key), has_aux=True)
+            (loss, (_, stats)), g = grad_fn(v["params"])
+            upd, o = opt.update(g, o, v["params"])
+            return {"params": optax.apply_updates(v["params"], upd), "batch_stats": stats}, o, loss, g
+
+        v, o, out = dict(v0), opt.init(v0["params"]), []
+        for s, batch in enumerate(batches):
+            v, o, loss, g = step(v, o, batch, jax.random.key(s))
+            out.append((loss, g))
+        return v, out
+
+    v_once, steps_once = run(True)
+    v_all, steps_all = run(False)
+    for (l1, g1), (l2, g2) in zip(steps_once, steps_all):
+        np.testing.assert_allclose(l1, l2, rtol=1e-5)
+        scale = max(float(jnp.max(jnp.abs(b))) for b in jax.tree.leaves(g2))
+        for a, b in zip(jax.tree.leaves(g1), jax.tree.leaves(g2)):
+            np.testing.assert_allclose(a, b, rtol=1e-3, atol=1e-5 * scale)
+    assert jax.tree.structure(v_once) == jax.tree.structure(v_all)
+    for path, a in jax.tree_util.tree_leaves_with_path(v_once):
+        b = functools.reduce(lambda t, k: t[k.key], path, v_all)
+        np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6, err_msg=jax.tree_util.keystr(path))
+    moved = max(float(jnp.max(jnp.abs(a - b))) for a, b in zip(jax.tree.leaves(v_all["params"]), jax.tree.leaves(v0["params"])))
+    assert moved > 1e-2  # the steps changed the parameters by far more than the tolerance
+    first = v_all["batch_stats"]["part_0"]["gcn"]["gcl_in"]["bn"]["var"]
+    assert float(jnp.max(jnp.abs(first - 1.0))) > 1e-3  # the first part's statistics moved (and matched)
+    x = batches[0]["window"][:, :15]
+    z = gsps.sample_noise(jax.random.key(9), 4, 5, 2, 8)
+    seq_once, _ = gsps.generate(gen, v_once, x, z, t_pred=60, n_pre=5, train=False)
+    seq_all, _ = gsps.generate(gen, v_all, x, z, t_pred=60, n_pre=5, train=False)
+    np.testing.assert_allclose(seq_once, seq_all, atol=1e-5)  # the trained generators predict the same futures
 
 
 # ----------------------------------------------------------------------------------------------

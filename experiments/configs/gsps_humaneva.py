@@ -3,10 +3,9 @@
 # The paper's row (DivSamp's Table 1, K = 50): APD 5.825, ADE 0.233, FDE 0.244, MMADE 0.343, MMFDE 0.331.
 # Release budget: prior 25 epochs x 48 batches of 4096 frames (1,200 steps); generator 500 epochs x 125
 # batches of 16 windows (62,500 steps, 1.0M windows, 10 x 10 = 100 futures each).
-# Measured here (2-core Intel Xeon, family 6 model 167, AVX-512/AMX, 2.6 GHz, the cores shared with another
-# training run, load average about 5, so upper bounds; steps 2-8 of a tiny-budget copy of this config):
-# prior 0.04 s/step (under a minute for 1,200), generator 5.5 s/step: about 96 h for the full budget on
-# this CPU; all 188 test windows evaluated in 14 s at K = 50.
+# Measured here (2-core Intel Xeon, family 6 model 167, AVX-512/AMX, 2.6 GHz; benchmarks/repro_cost.py, the
+# Benchmarks page's cost table): prior 3.3 ms/step (seconds for 1,200), generator 1.16 s/step: about 20 h for
+# the full budget on this CPU; all 188 test windows evaluated in 14 s at K = 50.
 """GSPS on HumanEva-I (15 -> 60 frames at 60 fps, 14 joints): the authors' release, setting by setting.
 
 Read against github.com/wei-mao-2019/gsps (its YAML files repeat keys; the later value is the one read):

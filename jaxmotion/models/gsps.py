@@ -146,7 +146,8 @@ def positions(frames: Float[Array, "... d"]) -> Float[Array, "... j 3"]:
 def limb_directions(frames: Float[Array, "... d"], parents: tuple[int, ...]) -> Float[Array, "... d"]:
     """Returns the unit limb directions `d_i = (p_i - p_parent(i)) / ||.||`, i = 1..J-1, flattened (GSPS Sec. 3.2)."""
     v = bone_vectors(frames, parents)
-    v = v / jnp.maximum(jnp.linalg.norm(v, axis=-1, keepdims=True), 1e-8)
+    # One reciprocal square root of the squared length, not a square root and a division: ||v|| floored at 1e-8.
+    v = v * jax.lax.rsqrt(jnp.maximum(jnp.sum(v * v, axis=-1, keepdims=True), 1e-16))
     return v.reshape(frames.shape)
 
 
@@ -158,10 +159,10 @@ def householder_product(u: Float[Array, "n d"]) -> Float[Array, "d d"]:
     """Returns the orthogonal `Q = H_1 H_2 ... H_n` with `H_i = I - 2 u_i u_i^T / (u_i^T u_i)`."""
 
     def step(q, v):
-        v = v / jnp.linalg.norm(v)
         return q - 2.0 * (q @ v)[:, None] * v[None, :], None
 
-    q, _ = jax.lax.scan(step, jnp.eye(u.shape[-1], dtype=u.dtype), u)
+    # The n directions normalised at once, before the loop: only the rank-one updates are serial.
+    q, _ = jax.lax.scan(step, jnp.eye(u.shape[-1], dtype=u.dtype), u / jnp.linalg.norm(u, axis=-1, keepdims=True))
     return q
 
 
@@ -189,7 +190,8 @@ class LinQR(nn.Module):
     def __call__(self, f: Float[Array, "... d"]):
         """Returns `(f Q R + b, log|det| = sum diag R)`."""
         q, r = self._qr()
-        return f @ q @ r + self.b, jnp.broadcast_to(jnp.sum(jnp.diag(self.r)), f.shape[:-1])
+        # Q R formed once (d x d), then one product with the batch, not two.
+        return f @ (q @ r) + self.b, jnp.broadcast_to(jnp.sum(jnp.diag(self.r)), f.shape[:-1])
 
     def inverse(self, y: Float[Array, "... d"]) -> Float[Array, "... d"]:
         """Returns f with `f Q R + b = y`."""
@@ -488,11 +490,15 @@ class PartGCN(nn.Module):
     execution: Execution = Execution()  # how it runs (the graph convolutions' precision and layout): nn/execution.py
 
     @nn.compact
-    def __call__(self, h: Float[Array, "b j f"], z: Float[Array, "b z"], *, train: bool) -> Float[Array, "b j f"]:
+    def __call__(
+        self, h: Float[Array, "b j f"], z: Float[Array, "b z"], *, train: bool, repeats: int = 1,
+    ) -> Float[Array, "b j f"]:
+        """`repeats`: each row stands for that many equal rows of the batch (its BatchNorm's, nn/batchnorm.py)."""
         zj = jnp.broadcast_to(z[:, None, :], h.shape[:2] + z.shape[-1:])
         x = jnp.concatenate([h, zj], axis=-1)
         mm = self.execution.precision
-        y = GCLStack(self.hidden, self.num_stage, precision=mm, node_major=self.execution.gcn_node_major, name="gcn")(x, train=train)
+        y = GCLStack(self.hidden, self.num_stage, precision=mm, node_major=self.execution.gcn_node_major, name="gcn")(
+            x, train=train, repeats=repeats)
         y = GraphConv(x.shape[-1], precision=mm, name="out")(y) + x
         return y[..., : h.shape[-1]]
 
@@ -506,28 +512,51 @@ class GSPSGenerator(nn.Module):
     execution: Execution = Execution()  # as PartGCN.execution (the flow prior keeps float32 always)
 
     @nn.compact
-    def __call__(self, nodes: Float[Array, "b j f"], z: Float[Array, "b p z"], *, train: bool) -> Float[Array, "b j f"]:
+    def __call__(
+        self, nodes: Float[Array, "g j f"], z: Float[Array, "b p z"], *, train: bool, first_repeats: int = 1,
+    ) -> Float[Array, "b j f"]:
+        """Returns the `b` samples' node features after every part; `b = g * first_repeats`.
+
+        `first_repeats = r > 1`: the samples come in groups of r consecutive rows that share their
+        conditioning and their first part's noise (the training grid's nk2, `training_noise`), `nodes`
+        holds one row per group and `z[::r, 0]` is each group's first-part noise. The first part, whose
+        input is then the same for the r samples of a group, runs once per group (its BatchNorm counting
+        each row r times) and its output is repeated; the later parts run on every sample. The same
+        numbers as `first_repeats=1` on the repeated nodes, to float32 rounding (tests/test_gsps.py).
+        """
+        r = first_repeats
         y = nodes
         for i, part in enumerate(self.parts):
-            out = PartGCN(self.hidden, self.num_stage, self.execution, name=f"part_{i}")(y, z[:, i], train=train)
+            first = i == 0 and r > 1
+            zi = z[::r, i] if first else z[:, i]
+            out = PartGCN(self.hidden, self.num_stage, self.execution, name=f"part_{i}")(
+                y, zi, train=train, repeats=r if first else 1)
             idx = np.asarray(part)
             y = y.at[:, idx].set(out[:, idx])
+            if first:
+                y = jnp.repeat(y, r, axis=0)
         return y
 
 
 def generate(
     gen: GSPSGenerator, variables, x: Float[Array, "b t_his d"], z: Float[Array, "b k p z"], *, t_pred: int, n_pre: int,
-    train: bool,
+    train: bool, first_repeats: int = 1,
 ):
-    """Returns the `(b, K, t_his + t_pred, D)` sequences for noises `z` (and the new BatchNorm statistics when training)."""
+    """Returns the `(b, K, t_his + t_pred, D)` sequences for noises `z` (and the new BatchNorm statistics when training).
+
+    `first_repeats = r`: the K samples of a window come in groups of r consecutive ones sharing their
+    first part's noise (`training_noise`'s nk2), so the first part runs once per group (`GSPSGenerator`).
+    """
     b, k = z.shape[:2]
+    if k % first_repeats:
+        raise ValueError(f"generate: first_repeats={first_repeats} must divide the K = {k} samples")
     nodes = condition_nodes(x, t_pred, n_pre)
-    nodes = jnp.repeat(nodes, k, axis=0)
+    nodes = jnp.repeat(nodes, k // first_repeats, axis=0)
     zz = z.reshape((b * k,) + z.shape[2:])
     if train:
-        out, upd = gen.apply(variables, nodes, zz, train=True, mutable=["batch_stats"])
+        out, upd = gen.apply(variables, nodes, zz, train=True, first_repeats=first_repeats, mutable=["batch_stats"])
     else:
-        out, upd = gen.apply(variables, nodes, zz, train=False), None
+        out, upd = gen.apply(variables, nodes, zz, train=False, first_repeats=first_repeats), None
     seq = from_nodes(out, x.shape[1] + t_pred).reshape((b, k, x.shape[1] + t_pred, -1))
     return seq, upd
 
@@ -557,11 +586,19 @@ def part_control_noise(key: jax.Array, b: int, k: int, n_parts: int, nz: int, fi
 
 def _exp_l1_diversity(y: Float[Array, "... k n"], scale: float) -> Float[Array, ""]:
     """Returns `mean_{i<j} exp(-||y_i - y_j||_1 / scale)` over the K axis, averaged over leading axes."""
-    # Only the k (k - 1) / 2 pairs i < j are differenced (not all k^2, then the upper triangle):
-    # the same numbers for less than half the elementwise work, which is most of this loss's time.
-    i, j = np.triu_indices(y.shape[-2], 1)
-    d = jnp.sum(jnp.abs(y[..., i, :] - y[..., j, :]), axis=-1)
-    return jnp.mean(jnp.exp(-d / scale))
+    # Only the k (k - 1) / 2 pairs i < j are differenced (not all k^2, then the upper triangle), taken as
+    # k - 1 slices, the pairs (i, i + s) for each shift s: a slice's gradient is a pad, where a gather of the
+    # pairs had a scatter-add as its gradient (measured in GSPS's generator step).
+    k = y.shape[-2]
+    total = sum(jnp.sum(jnp.exp(-jnp.sum(jnp.abs(y[..., s:, :] - y[..., : k - s, :]), axis=-1) / scale)) for s in range(1, k))
+    return total / (np.prod(y.shape[:-2], dtype=np.float64) * (k * (k - 1) // 2))
+
+
+def _take_last(x: Float[Array, "... n"], idx: np.ndarray) -> Float[Array, "... m"]:
+    """Returns `x[..., idx]` for a fixed index array, as slices of its runs of consecutive indices (a slice's
+    gradient is a pad; a gather's is a scatter-add)."""
+    runs = np.split(idx, np.flatnonzero(np.diff(idx) != 1) + 1)
+    return jnp.concatenate([x[..., int(r[0]) : int(r[-1]) + 1] for r in runs], axis=-1)
 
 
 def _best_of_errors(
@@ -586,9 +623,14 @@ def generator_loss(
     angle_bounds: Float[Array, "a 2"], n_pre: int, nz: int, nk1: int, nk2: int,
     lambda_his: float, lambda_limb: float, lambda_div_first: float, lambda_div_rest: float, alpha: float, beta: float,
     lambda_recon: float, lambda_recon_mm: float, lambda_prior: float, prior_stride: int, lambda_angle: float,
-    best_of: str = "gram",
+    best_of: str = "gram", first_part_once: bool = True,
 ):
     """Returns `(loss, (metrics, batch_stats))`: GSPS's generator objective (release `train.py: loss_function`).
+
+    `first_part_once` (default): the first part's GCN runs once per first-part noise, nk1 times per
+    window, instead of once per sample, nk1 * nk2 times (its input is the same for the nk2 samples
+    that share the noise; `GSPSGenerator`'s `first_repeats`). False runs it on every sample, as the
+    release does; the same parameters after training to float32 rounding (tests/test_gsps.py).
 
     `batch`: `window (b, T, D)`, `mm (b, M, t_pred, D)` pseudo ground-truth futures and `mm_mask (b, M)`.
     `best_of`: how the (b, K, M) squared errors of the best-of-K terms are formed: "gram" (default) as
@@ -603,7 +645,8 @@ def generator_loss(
     x, y = w[:, :t_his], w[:, t_his:]
     k_noise, k_phase = jax.random.split(key)
     z = training_noise(k_noise, b, len(parts), nk1, nk2, nz)
-    seq, upd = generate(gen, variables, x, z, t_pred=t_pred, n_pre=n_pre, train=True)  # (b, K, T, D)
+    seq, upd = generate(gen, variables, x, z, t_pred=t_pred, n_pre=n_pre, train=True,
+                        first_repeats=nk2 if first_part_once else 1)  # (b, K, T, D)
     y_g = seq[:, :, t_his:]
     # Past reconstruction and limb lengths (of every frame, against the first observed frame).
     loss_his = jnp.mean(jnp.sum((seq[:, :, :t_his] - x[:, None]) ** 2, axis=-1))
@@ -612,9 +655,8 @@ def generator_loss(
     # Diversity: the first part over its nk1 samples (later-part index 0), the later parts over nk2 per first sample.
     coords = part_coords(parts)
     grid = y_g.reshape(b, nk1, nk2, t_pred, -1)
-    first = grid[:, :, 0][..., coords[0]].reshape(b, nk1, -1)
-    rest_idx = np.concatenate(coords[1:])
-    rest = grid[..., rest_idx].reshape(b, nk1, nk2, -1)
+    first = _take_last(grid[:, :, 0], coords[0]).reshape(b, nk1, -1)
+    rest = _take_last(grid, np.concatenate(coords[1:])).reshape(b, nk1, nk2, -1)
     div_first = _exp_l1_diversity(first, alpha)
     div_rest = _exp_l1_diversity(rest, beta)
     # Best of nk1 * nk2 against the truth and against every pseudo ground-truth future.

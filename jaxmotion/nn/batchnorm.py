@@ -12,6 +12,11 @@ Inside the data-parallel train step the batch moments are the whole global batch
 moments are averaged over the devices (`batch.batch_mean`, equal shares), as one device
 computes them. With `per_device` they are each device's own rows' (no collective; PyTorch
 DistributedDataParallel's default), and the train step averages the running statistics.
+
+A batch whose rows come in groups of identical copies (GSPS's first body part, the same for the nk2
+samples that share its noise) can be passed one row per group with `repeats`, the group size: equal
+copies leave the mean and the biased variance unchanged, so only the count behind the unbiased running
+variance changes, and the statistics are those of the full batch.
 """
 
 from __future__ import annotations
@@ -38,7 +43,8 @@ class BatchNorm(nn.Module):
     per_device: bool = False
 
     @nn.compact
-    def __call__(self, x: Float[ArrayLike, "... f"]) -> Float[Array, "... f"]:
+    def __call__(self, x: Float[ArrayLike, "... f"], repeats: int = 1) -> Float[Array, "... f"]:
+        """`repeats`: each row of `x` stands for that many equal rows of the batch (see the module docstring)."""
         x = jnp.asarray(x)
         if self.node_major:  # features (J, F) at both ends, statistics over the middle axes
             view = (x.shape[0],) + (1,) * (x.ndim - 2) + (x.shape[-1],)
@@ -57,7 +63,7 @@ class BatchNorm(nn.Module):
             mean = across(jnp.mean(x, axis=axes, keepdims=True))
             var = across(jnp.mean(jnp.square(x - mean), axis=axes, keepdims=True))
             if not self.is_initializing():
-                n = math.prod(x.shape[a] for a in axes) * (1 if self.per_device else batch.batch_parts())
+                n = math.prod(x.shape[a] for a in axes) * repeats * (1 if self.per_device else batch.batch_parts())
                 if self.per_device:
                     batch.note_local_statistics()
                 keep = var * (n / (n - 1)) if n > 1 else var  # the unbiased variance

@@ -11,7 +11,8 @@ A GCL-BN-Tanh block normalises each of the J * F outputs separately (PyTorch `Ba
 on the flattened features, as in the releases), so the BatchNorm statistics live in the
 `batch_stats` collection: apply with `train=True, mutable=["batch_stats"]` while training and
 `train=False` (running averages) to evaluate. The running variance is kept as PyTorch keeps it
-(unbiased; nn/batchnorm.py).
+(unbiased; nn/batchnorm.py). Every block takes BatchNorm's `repeats` (each input row stands for that
+many equal rows of the batch; nn/batchnorm.py) as a call argument.
 """
 
 from __future__ import annotations
@@ -71,16 +72,16 @@ class GCLBlock(nn.Module):
     per_device_bn: bool = False  # BatchNorm.per_device: each device's own training moments
 
     @nn.compact
-    def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool) -> Float[Array, "... j o"]:
+    def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool, repeats: int = 1) -> Float[Array, "... j o"]:
         x = GraphConv(self.features, precision=self.precision, node_major=self.node_major, name="gc")(h)
         bn = BatchNorm(
             use_running_average=not train, momentum=0.9, epsilon=1e-5, node_major=self.node_major,
             per_device=self.per_device_bn, name="bn",
         )
         if self.node_major:
-            return jnp.tanh(bn(x))
+            return jnp.tanh(bn(x, repeats))
         shape = x.shape
-        return jnp.tanh(bn(x.reshape(shape[:-2] + (shape[-2] * shape[-1],))).reshape(shape))
+        return jnp.tanh(bn(x.reshape(shape[:-2] + (shape[-2] * shape[-1],)), repeats).reshape(shape))
 
 
 class ResidualGCLBlock(nn.Module):
@@ -92,9 +93,9 @@ class ResidualGCLBlock(nn.Module):
     per_device_bn: bool = False  # as GCLBlock.per_device_bn
 
     @nn.compact
-    def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool) -> Float[Array, "... j f"]:
-        x = GCLBlock(h.shape[-1], self.precision, self.node_major, self.per_device_bn, name="gcl_0")(h, train=train)
-        x = GCLBlock(self.features, self.precision, self.node_major, self.per_device_bn, name="gcl_1")(x, train=train)
+    def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool, repeats: int = 1) -> Float[Array, "... j f"]:
+        x = GCLBlock(h.shape[-1], self.precision, self.node_major, self.per_device_bn, name="gcl_0")(h, train=train, repeats=repeats)
+        x = GCLBlock(self.features, self.precision, self.node_major, self.per_device_bn, name="gcl_1")(x, train=train, repeats=repeats)
         return x + h
 
 
@@ -120,12 +121,12 @@ class GCLStack(nn.Module):
     per_device_bn: bool = False  # as GCLBlock.per_device_bn
 
     @nn.compact
-    def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool) -> Float[Array, "... j o"]:
+    def __call__(self, h: Float[ArrayLike, "... j f"], *, train: bool, repeats: int = 1) -> Float[Array, "... j o"]:
         nm = self.node_major
         if nm:
             h = jnp.moveaxis(jnp.asarray(h), -2, 0)
         bn = self.per_device_bn
-        h = GCLBlock(self.features, self.precision, nm, bn, name="gcl_in")(h, train=train)
+        h = GCLBlock(self.features, self.precision, nm, bn, name="gcl_in")(h, train=train, repeats=repeats)
         for i in range(self.num_residual):
-            h = ResidualGCLBlock(self.features, self.precision, nm, bn, name=f"res_{i}")(h, train=train)
+            h = ResidualGCLBlock(self.features, self.precision, nm, bn, name=f"res_{i}")(h, train=train, repeats=repeats)
         return jnp.moveaxis(h, 0, -2) if nm else h
