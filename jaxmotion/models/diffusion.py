@@ -413,6 +413,12 @@ def _trunk(p: dict, w: _Folded, x: Float[Array, "n k b d"], film: Float[Array, "
     return _dense(h, p["out"], mm)
 
 
+# The folded sampler's default chunk of K, in rows (samples x windows x coefficients) of its products:
+# measured on a 2-core CPU at batch 64, K = 50 (960 rows a sample), chunks of 10 samples (9,600 rows)
+# ran 1.15x faster than all 50 at once and 1.8x faster than one at a time.
+CHUNK_ROWS = 10_000
+
+
 def sample(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.Array, k: int, *, t_pred: int,
            abar: Float[Array, " T"], sampling_steps: int, complete_frames: int | None = None,
            cond_keep: float = 1.0, k_chunk: int | None = None) -> Float[Array, "b k t_pred d"]:
@@ -441,8 +447,9 @@ def sample(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.A
         sampling_steps: DDIM steps (fewer is faster and less accurate: the Results page plots it).
         complete_frames: observed frames put back at every step (None: all `t_his`; 0: no completion).
         cond_keep: the probability that a sample is conditioned on `x` (1: always).
-        k_chunk: the K samples run this many at a time (a divisor of K; None: all at once), each chunk
-            its own scan over the steps, so a large batch's activations stay in cache. Same futures.
+        k_chunk: the K samples run this many at a time (a divisor of K), each chunk its own scan over
+            the steps, so a large batch's activations stay in cache; the futures are the same. None:
+            the largest divisor of K whose chunk holds at most `CHUNK_ROWS` coefficient rows.
 
     Returns:
         `(b, K, t_pred, D)` futures.
@@ -451,7 +458,8 @@ def sample(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.A
     b, t_his, d = x.shape
     t_total = t_his + t_pred
     n, c, mm = model.n_dct, model.latent, model.execution.precision
-    k_chunk = k if k_chunk is None else k_chunk
+    if k_chunk is None:
+        k_chunk = max([j for j in range(1, k + 1) if k % j == 0 and j * b * n <= CHUNK_ROWS] or [1])
     if k % k_chunk:
         raise ValueError(f"sample: k_chunk ({k_chunk}) must divide k ({k})")
     p = params["params"]
