@@ -295,7 +295,7 @@ def _ddim_table(rows: list[dict], s: Settings, peak: float | None) -> list[str]:
     lines = [
         "",
         f"### Diffusion sampling: K = {s.k} futures by DDIM with DCT completion (jaxmotion: one `lax.scan` over the "
-        "steps, vmapped over K; PyTorch: the release's Python loop over the steps)",
+        "steps, the K samples in the batch of every product; PyTorch: the release's Python loop over the steps)",
         "",
         f"Denoiser of `DiffusionConfig`'s defaults (Bandai CPU sizes). Median of {s.ddim_repeats} calls after "
         f"{s.ddim_warmup} warm-up call(s).",

@@ -13,7 +13,9 @@ Sampling is DDIM (Song et al. 2021, Eq. (12) with sigma = 0) on a sub-sequence o
 timesteps, with HumanMAC's DCT completion (Sec. 3.3, Eq. (6)-(7)) after each step: the padded
 observation is noised to the step's level, both it and the sample go back to time, the masked
 (observed) frames are taken from the observation, and the result returns to DCT space. The whole
-loop is one `lax.scan`, vmapped over the K samples.
+loop is one `lax.scan`: `sample_reference` vmaps `ddim_sample` of the Flax denoiser over the K samples
+(the readable definition); `sample` computes the same futures with the K samples in the batch of every
+product and the step-invariant terms computed once (tested equal).
 
 Sizes follow the release's `cfg/h36m.yml` (8 blocks, 8 heads, width 512, 20 coefficients, 1000
 noise steps, 100 DDIM steps, condition kept for 80% of training samples, EMA 0.995 after 2000 steps).
