@@ -428,11 +428,11 @@ def sample(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.A
 
     The futures of `sample_reference` (`ddim_sample` of the Flax denoiser vmapped over K; tested equal
     to float32 tolerance), computed with the K samples folded into the batch of every product and
-    what does not change across steps computed once before the scan: the timestep and condition
-    embeddings and every Stylization's `(scale, shift)` for the fixed step sequence, each step's two
-    DDIM coefficients, and the DCT completion as two `(n, n)` matrices, `A = C M C^T` and
-    `C (1 - M) C^T` (`C` the DCT, `M` the mask), so a step's completion is
-    `A (sqrt(abar_prev) cond + sqrt(1 - abar_prev) z) + C (1 - M) C^T x`.
+    what does not change across steps computed once before the scan: the timestep embeddings of the
+    fixed step sequence, the condition's embedding, each step's two DDIM coefficients, and the DCT
+    completion as two `(n, n)` matrices, `A = C M C^T` and `C (1 - M) C^T` (`C` the DCT, `M` the
+    mask), so a step's completion is `A (sqrt(abar_prev) cond + sqrt(1 - abar_prev) z) + C (1 - M) C^T x`.
+    Every Stylization's `(scale, shift)` comes from the step's embedding on the windows' rows, not K times.
 
     Sample k draws its start `x_T` from `split(key_k)[0]` and its completion noise from `split(key_k)[1]`,
     `key_k = split(key, k)[k]`. `cond_keep < 1` (`DiffusionConfig.test_cond_keep`): sample k is conditioned, for every
@@ -487,7 +487,7 @@ def sample(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.A
     m = (jnp.arange(t_total) < frames).astype(jnp.float32)
     keep_mat = (dmat * m) @ dmat.T  # C M C^T
     free_mat = (dmat * (1.0 - m)) @ dmat.T  # C (1 - M) C^T
-    known = jnp.einsum("ij,bjd->ibd", keep_mat, cond)[:, None]  # A cond, (n, 1, b, d)
+    known = jnp.einsum("ij,bjd->ibd", keep_mat, cond)[:, None]  # C M C^T cond, (n, 1, b, d)
 
     keys = jax.random.split(key, k)
     if cond_keep < 1.0:
@@ -526,13 +526,13 @@ def sample(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.A
     if n_chunks == 1:
         x0 = chunk((x_T, k1, keep))
     else:
-        x0 = jnp.concatenate(list(jax.lax.map(chunk, (split(x_T), split(k1), split(keep)))), axis=1)
+        x0 = jnp.moveaxis(jax.lax.map(chunk, (split(x_T), split(k1), split(keep))), 0, 1).reshape(n, k, b, d)
     return jnp.einsum("ct,ckbd->bktd", dct_matrix(t_total, n)[:, t_his:], x0)
 
 
-def sample_reference(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.Array, k: int, *, t_pred: int,
-           abar: Float[Array, " T"], sampling_steps: int, complete_frames: int | None = None,
-           cond_keep: float = 1.0) -> Float[Array, "b k t_pred d"]:
+def sample_reference(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.Array, k: int, *,
+                     t_pred: int, abar: Float[Array, " T"], sampling_steps: int, complete_frames: int | None = None,
+                     cond_keep: float = 1.0) -> Float[Array, "b k t_pred d"]:
     """Returns `sample`'s futures the readable way: `ddim_sample` of the Flax denoiser, vmapped over the K samples.
 
     The definition `sample` is tested against; the arguments and the random draws are `sample`'s.
