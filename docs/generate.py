@@ -293,7 +293,7 @@ METHODS = [
     ("DivSamp", "Dang et al., ACM MM 2022", "GCN CVAE on DCT coefficients, Gumbel-Softmax sampler over a learned basis, any K (`models/divsamp.py`, `gumbel.py`)"),
     ("GSPS", "Mao, Liu & Salzmann, ICCV 2021", "flow pose prior on limb directions, measured angle limits, body parts in sequence, part control (`models/gsps.py`)"),
     ("MotionMap", "Hosseininejad, Shukla et al., CVPR 2025", "autoencoder + uncertainty, t-SNE map and codebook, heatmap, peaks ranked by confidence (`models/motionmap.py`)"),
-    ("diffusion", "HumanMAC class (Chen et al., ICCV 2023)", "DCT of the padded window, transformer denoiser, DDIM with DCT completion as one `lax.scan` vmapped over K (`models/diffusion.py`)"),
+    ("diffusion", "HumanMAC class (Chen et al., ICCV 2023)", "DCT of the padded window, transformer denoiser, DDIM with DCT completion as one `lax.scan`, the K samples in the batch (`models/diffusion.py`)"),
     ("body fitting", "MOJO's recursive projection", "skeleton and SMPL-X bodies, marker sets, Levenberg-Marquardt fits (optimistix) inside `lax.scan`, C3D reader (`body/`, `formats/c3d.py`)"),
 ]
 
