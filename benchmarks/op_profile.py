@@ -39,9 +39,9 @@ WRAPPERS = ("Pjit", "PjRt", "Execute", "Thunk", "Threadpool", "Parse", "Handle",
 
 def parse_case(text: str) -> Case:
     model, kind, *rest = text.split("/")
-    kw = {"batch": 1, "k": 0, "t_pred": 0}
+    kw = {"batch": 1, "k": 0, "t_pred": 0, "steps": 0}
     for part in rest:
-        key = {"b": "batch", "k": "k", "t": "t_pred"}[part[0]]
+        key = {"b": "batch", "k": "k", "t": "t_pred", "s": "steps"}[part[0]]
         kw[key] = int(part[1:])
     return Case(model, kind, **kw)
 

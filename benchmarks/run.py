@@ -295,7 +295,7 @@ def _ddim_table(rows: list[dict], s: Settings, peak: float | None) -> list[str]:
     lines = [
         "",
         f"### Diffusion sampling: K = {s.k} futures by DDIM with DCT completion (jaxmotion: one `lax.scan` over the "
-        "steps, vmapped over K; PyTorch: the release's Python loop over the steps)",
+        "steps, the K samples in the batch of every product; PyTorch: the release's Python loop over the steps)",
         "",
         f"Denoiser of `DiffusionConfig`'s defaults (Bandai CPU sizes). Median of {s.ddim_repeats} calls after "
         f"{s.ddim_warmup} warm-up call(s).",
@@ -417,6 +417,7 @@ def main(argv=None):
     ap.add_argument("--slow-factor", type=float,
                     help="leave out a call whose probe product after it took more than this times its fastest "
                          "(harness.measure's gate, e.g. 1.5; default 0: off, every call counted and the probe recorded)")
+    ap.add_argument("--ddim-steps", help="the diffusion sampler's DDIM steps, comma-separated (default 100,10)")
     ap.add_argument("--render", action="store_true", help="only re-render the tables from the results file of --tag")
     args = ap.parse_args(argv)
     if args.render:
@@ -434,6 +435,8 @@ def main(argv=None):
         kw["repeats"] = args.repeats
     if args.warmup is not None:
         kw["warmup"] = args.warmup
+    if args.ddim_steps:
+        kw["ddim_steps"] = tuple(int(v) for v in args.ddim_steps.split(","))
     if args.slow_factor is not None:
         if args.slow_factor < 0 or 0 < args.slow_factor <= 1:
             ap.error(f"--slow-factor must be 0 (off) or above 1, got {args.slow_factor}")

@@ -223,6 +223,34 @@ def test_the_method_trains_and_evaluates_from_the_command_line(tmp_path, capsys)
     assert np.all(np.isfinite(out["futures"])) and len(list((tmp_path / "pred").glob("future_*.bvh"))) == 3
 
 
+@pytest.mark.parametrize("k,k_chunk,kw", [
+    (4, None, {}),  # completion of the t_his observed frames, every sample conditioned
+    (6, 3, {"cond_keep": 0.5}),  # two chunks of K; some samples unconditioned
+    (4, 2, {"complete_frames": 0}),  # no completion
+    (3, 1, {"complete_frames": 2, "sampling_steps": 25}),
+])
+def test_the_folded_sampler_equals_the_readable_one(k, k_chunk, kw):
+    # `sample` (K folded into the batch, the step-invariant terms hoisted, the completion as (n, n)
+    # products) against `sample_reference` (`ddim_sample` of the Flax module vmapped over K): the
+    # same futures from the same key, to float32 rounding, with every layer non-zero.
+    model = tiny(n_dct=6)
+    p = init(model, 6)
+    obs = windows(4, 3)[:, :T_HIS]
+    args = dict(t_pred=T_PRED, abar=d.schedule("cosine", 1000), **{"sampling_steps": 10, **kw})
+    fast = d.sample(model, p, obs, jax.random.key(9), k, k_chunk=k_chunk, **args)
+    ref = d.sample_reference(model, p, obs, jax.random.key(9), k, **args)
+    assert fast.shape == ref.shape == (3, k, T_PRED, D)
+    np.testing.assert_allclose(fast, ref, rtol=1e-5, atol=1e-5 * float(jnp.abs(ref).max()))
+    assert float(jnp.abs(ref).max()) > 0.1
+
+
+def test_k_chunk_must_divide_k():
+    model = tiny()
+    with pytest.raises(ValueError, match="k_chunk"):
+        d.sample(model, init(model), windows(0, 1)[:, :T_HIS], jax.random.key(0), 5, t_pred=T_PRED,
+                 abar=d.schedule("cosine", 100), sampling_steps=10, k_chunk=2)
+
+
 def test_test_cond_keep_draws_conditioned_and_unconditioned_samples():
     # cond_keep = 0: every sample denoised without its condition, i.e. as a model whose condition
     # embedding is zero; cond_keep = 1 (default): all conditioned; in between, some of each.

@@ -2,7 +2,7 @@
 
 Same weights (converted from jaxmotion), same windows, same noise (the start x_T and the completion's
 noise of every step) -> the denoiser's outputs and the sampled futures agree to float32 tolerance,
-with the JAX sampler's lax.scan over steps and vmap over K against the release's Python loop over
+with the JAX sampler's lax.scan over steps (the K samples in the batch) against the release's Python loop over
 steps with the K samples in the batch. Skipped when PyTorch is not installed.
 """
 
