@@ -73,3 +73,16 @@ def test_lr_schedule_is_constant_then_linear_to_zero():
     assert float(s(20)) == pytest.approx(1.0)
     assert float(s(60)) == pytest.approx(0.5)
     assert float(s(100)) == pytest.approx(0.0)
+
+
+def test_logged_grad_norm_equals_the_global_norm_for_leaves_of_any_rank():
+    import jax
+    import numpy as np
+    import optax
+
+    from jaxmotion.train.loop import _norm
+
+    keys = jax.random.split(jax.random.key(3), 4)
+    tree = {"s": jax.random.normal(keys[0], ()), "v": jax.random.normal(keys[1], (7,)),
+            "m": {"w": jax.random.normal(keys[2], (300, 129))}, "t": jax.random.normal(keys[3], (2, 3, 5))}
+    np.testing.assert_allclose(float(_norm(tree)), float(optax.tree.norm(tree)), rtol=1e-6)
