@@ -527,7 +527,7 @@ def sample(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.A
         x0 = chunk((x_T, k1, keep))
     else:
         x0 = jnp.moveaxis(jax.lax.map(chunk, (split(x_T), split(k1), split(keep))), 0, 1).reshape(n, k, b, d)
-    return jnp.einsum("ct,ckbd->bktd", dct_matrix(t_total, n)[:, t_his:], x0)
+    return jnp.einsum("ct,ckbd->bktd", dmat[:, t_his:], x0)
 
 
 def sample_reference(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.Array, k: int, *,

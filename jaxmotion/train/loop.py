@@ -181,8 +181,9 @@ def _data_parallel_step(grads, tx, mesh: Mesh | None, micro_batches: int, *, bat
 def _norm(tree) -> jax.Array:
     """Returns the global L2 norm of `tree` (the logged `grad_norm`), each leaf's squares summed row by row first.
 
-    XLA:CPU runs the reduction of a whole leaf in one piece, inside the step's fusions, and a reduction per row in
-    parallel: DivSamp's HumanEva-I sampler step (a 73 MB weight) 0.295 -> 0.282 s, alternating rounds in one run
+    As one whole-leaf sum, XLA:CPU wrote the squares of DivSamp's 73 MB bases gradient out unfused and then summed
+    them (5.6 and 8.3 ms of a 278 ms step in the profile, `benchmarks/results/optimisations.md`); summed row by row,
+    the HumanEva-I sampler step went 0.295 -> 0.282 s, alternating rounds in one run
     (`benchmarks/results/grad_norm_rows_ab.json`). The parameters and updates do not read it; the value differs from
     one whole-leaf sum at float rounding only."""
     def sq(a):
