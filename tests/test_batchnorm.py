@@ -113,7 +113,8 @@ def test_per_device_moments_normalise_each_devices_rows_with_one_all_reduce_per_
     import subprocess
     import sys
 
-    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2", JAX_PLATFORMS="cpu")
+    flags = f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count=2".strip()  # keeps the session's flags
+    env = dict(os.environ, XLA_FLAGS=flags, JAX_PLATFORMS="cpu")
     out = tmp_path / "out.json"
     subprocess.run([sys.executable, "-c", _PER_DEVICE_WORKER, str(out)], env=env, check=True, timeout=300)
     import json

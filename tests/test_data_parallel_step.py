@@ -1,5 +1,6 @@
 """The data-parallel train step: one gradient all-reduce per step, outside every loop; every method's
-stages step on 4 devices as on one; micro-batches (gradient accumulation) step as the whole batch.
+stages step on 4 devices as on one (DLow's stages and DivSamp's CVAE over whole runs in
+tests/test_distributed.py); micro-batches (gradient accumulation) step as the whole batch.
 
 The tests run in worker processes of their own (`python tests/test_data_parallel_step.py
 collectives|steps OUT`) with 4
@@ -22,20 +23,20 @@ import pytest
 
 TIMEOUT = 900
 DEVICES = 4
+# Stages whose 4-device training tests/test_distributed.py checks against one device over whole runs (DLow's
+# two stages, DivSamp's CVAE): not compiled again here. DLow's CVAE in micro-batches: the last test below.
+COVERED = ("dlow/cvae", "dlow/dlow_k4", "divsamp/cvae")
 
 
 def _configs() -> dict:
     from jaxmotion.config import Config
     from jaxmotion.models.divsamp import DivSampConfig
-    from jaxmotion.models.dlow import CVAEConfig, DLowConfig, QConfig
     from jaxmotion.models.gsps import GSPSConfig
     from jaxmotion.models.mojo import MojoConfig
     from jaxmotion.models.motionmap import MotionMapConfig
 
     common = dict(eval_k=(4,), action_metrics=False, max_test_windows=8)
     return {
-        "dlow": Config(method_config=DLowConfig(cvae=CVAEConfig(num_steps=2, batch_size=8, nz=8, nh_rnn=16, nh_mlp=(16,)),
-                                                q=QConfig(num_steps=2, batch_size=8, nh_rnn=16, nh_mlp=(16,))), **common),
         "mojo": Config(method="mojo", method_config=MojoConfig(nz=4, nh_rnn=16, nh_mlp=(16,), q_nh_rnn=8, q_nh_mlp=(16,), num_steps=2,
                                                               batch_size=8, q_num_steps=2, q_batch_size=8), **common),
         "divsamp": Config(method="divsamp", method_config=DivSampConfig(
@@ -152,7 +153,7 @@ def _worker_steps(out: Path) -> None:
         for stage in experiment.get_method(cfg.method).stages(cfg, prep):
             state = runner.init_state(stage, trained)
             trained[stage.name] = state.params
-            if stage.num_steps == 0:
+            if stage.num_steps == 0 or f"{name}/{stage.name}" in COVERED:
                 continue
             batch = stage.batches(np.random.default_rng([stage.data_seed, 0]))
             key = jax.random.key(7)
@@ -170,7 +171,8 @@ def _worker_steps(out: Path) -> None:
 
 
 def _run(mode: str, out: Path, cache: Path | None = None) -> None:
-    flags = f"--xla_force_host_platform_device_count={DEVICES}"
+    # Keeps the flags the test session set (tests/conftest.py: XLA's cheapest backend optimisation level).
+    flags = f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={DEVICES}".strip()
     env = dict(os.environ, JAX_PLATFORMS="cpu", XLA_FLAGS=flags)
     if cache is not None:  # most of the steps' worker is compiling; launches share a persistent cache
         env.update(JAX_COMPILATION_CACHE_DIR=str(cache), JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS="0")
@@ -219,13 +221,13 @@ def _assert_metrics_equal(got: dict, want: dict, what: str) -> None:
         assert got[k] == pytest.approx(v, rel=1e-4 if k == "loss" else 1e-3, abs=1e-6), (what, k, got[k], v)
 
 
-@pytest.mark.slow  # compiles 30 train steps of 11 stages (3-10 minutes of CPU)
+@pytest.mark.slow  # compiles 22 train steps of 8 stages (2-6 minutes of CPU)
 def test_every_method_and_stage_steps_on_four_devices_as_on_one(worker):
     out, result = worker
     steps = result["steps"]
-    # Every trained stage of every method (computed stages, e.g. MotionMap's codebook, train nothing).
+    # Every trained stage of every method but COVERED (computed stages, e.g. MotionMap's codebook, train nothing).
     assert sorted(steps) == sorted([
-        "dlow/cvae", "dlow/dlow_k4", "mojo/cvae", "mojo/q_k4", "divsamp/cvae", "divsamp/sampler", "gsps/prior", "gsps/generator",
+        "mojo/cvae", "mojo/q_k4", "divsamp/sampler", "gsps/prior", "gsps/generator",
         "motionmap/autoencoder", "motionmap/heatmap", "motionmap/finetune",
     ])
     for name, m in steps.items():
@@ -238,8 +240,9 @@ def test_every_method_and_stage_steps_on_four_devices_as_on_one(worker):
 def test_micro_batches_step_as_the_whole_batch(worker):
     out, result = worker
     micro = result["micro"]
-    assert sorted(micro) == sorted(["dlow/cvae", "dlow/dlow_k4", "mojo/cvae", "mojo/q_k4", "gsps/prior", "motionmap/autoencoder",
-                                    "motionmap/heatmap", "motionmap/finetune"])
+    # MOJO's Q step is DLow's K-sample Q loss on MOJO's decoder; DLow's CVAE: the last test below.
+    assert sorted(micro) == sorted(["mojo/cvae", "mojo/q_k4", "gsps/prior", "motionmap/autoencoder", "motionmap/heatmap",
+                                    "motionmap/finetune"])
     for name, m in micro.items():  # 2 micro-batches on each of 4 devices against the whole batch on one
         one, acc = (dict(np.load(out / f"{name.replace('/', '-')}-{got}.npz")) for got in ("1", "micro"))
         _assert_steps_equal(acc, one, name)

@@ -136,12 +136,19 @@ def test_generated_tables_are_up_to_date():
     assert stale == [], "out of date: run `python docs/generate.py`"
 
 
-def test_the_site_builds_with_warnings_as_errors(tmp_path):
+@pytest.fixture(scope="module")
+def site(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
+    """The site built once for this file's tests, warnings as errors: `(folder, the build's process)`."""
     pytest.importorskip("mkdocs")
     pytest.importorskip("mkdocstrings")
+    out = tmp_path_factory.mktemp("site")
     r = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-q", "-f", str(DOCS / "mkdocs.yml"),
-                        "-d", str(tmp_path / "site")], capture_output=True, text=True, timeout=300,
-                       env=dict(os.environ, NO_MKDOCS_2_WARNING="1"))
+                        "-d", str(out)], capture_output=True, text=True, timeout=300, env=dict(os.environ, NO_MKDOCS_2_WARNING="1"))
+    return out, r
+
+
+def test_the_site_builds_with_warnings_as_errors(site):
+    _, r = site
     assert r.returncode == 0, r.stdout + r.stderr
 
 
@@ -152,7 +159,7 @@ def _widths():
     return mod
 
 
-def test_results_and_benchmarks_show_figures_and_no_table_wider_than_the_page(tmp_path):
+def test_results_and_benchmarks_show_figures_and_no_table_wider_than_the_page(site, tmp_path):
     """In headless Chromium at 1280 px (skipped without one: `apt-get install chromium`), the Results and
     Benchmarks pages each show at least three figures, and no table, collapsed blocks opened, is wider than the
     page's text column; the screenshots land in the test's temporary folder."""
@@ -160,9 +167,7 @@ def test_results_and_benchmarks_show_figures_and_no_table_wider_than_the_page(tm
     widths = _widths()
     if widths.browser() is None:
         pytest.skip("no Chromium on PATH (chromium, chromium-browser, google-chrome): table widths not measured")
-    site = tmp_path / "site"
-    r = subprocess.run([sys.executable, "-m", "mkdocs", "build", "-q", "-f", str(DOCS / "mkdocs.yml"), "-d", str(site)],
-                       capture_output=True, text=True, timeout=300, env=dict(os.environ, NO_MKDOCS_2_WARNING="1"))
+    site, r = site
     assert r.returncode == 0, r.stdout + r.stderr
     for page in ("results", "benchmarks"):
         m = widths.measure(site, page, 1280, screenshot=tmp_path / f"{page}.png")

@@ -20,7 +20,8 @@ def _curve_lines(stage_dir: Path) -> list[dict]:
 
 def test_curves_logged_per_stage_and_plotted(tmp_path, capsys):
     cfg = Config(action_metrics=False,
-        method_config=DLowConfig(cvae=CVAEConfig(num_steps=30), q=QConfig(num_steps=20)), eval_k=(5,),
+        method_config=DLowConfig(cvae=CVAEConfig(num_steps=30, batch_size=16, nz=8, nh_rnn=32, nh_mlp=(32,)),
+                                 q=QConfig(num_steps=20, batch_size=8, nh_rnn=32, nh_mlp=(32,))), eval_k=(5,),
         curve_every=15, curve_windows=24, curve_k=5, max_test_windows=60, log_every=10,
     )
     prep = ex.prepare(ex.load_data(cfg), cfg.max_test_windows)
