@@ -577,7 +577,8 @@ def humaneva_claims() -> list[str]:
 
 
 def humaneva_section() -> list[str]:
-    files = [f for _, _, _, c, _ in HUMANEVA_ROWS for f in humaneva_runs(c)]
+    # One line per run file: a run that stands under two papers' rows (DLow's) is listed once.
+    files = list(dict.fromkeys(f for _, _, _, c, _ in HUMANEVA_ROWS for f in humaneva_runs(c)))
     return [
         "## HumanEva-I, the papers' protocol",
         "",
