@@ -103,7 +103,9 @@ DDIM_PROFILE = (
     "LayerNorm and the stylisation 24%, the completion's normal draws 10%, GELU 9%. At batch 1 a step is about 110\n"
     "small XLA operations on 750 rows, about 50 us each.")
 # benchmarks/repro_cost.py: each HumanEva-I release config's stages; the GRU decoders' configs beside the earlier source.
-REPRO_COST = ["repro_cost_cpu_decoders.json", "repro_cost_cpu_stages.json", "repro_cost_cpu_diffusion.json"]
+# A later file's stage replaces the same config's stage of an earlier file (a stage measured again after a change).
+REPRO_COST = ["repro_cost_cpu_decoders.json", "repro_cost_cpu_stages.json", "repro_cost_cpu_diffusion.json",
+              "repro_cost_cpu_gsps_prior.json"]
 # benchmarks/op_profile.py --config: where the time of the GCN stages goes (per-op times, grouped as op_profile groups them).
 REPRO_PROFILE = "op_profile_humaneva_gcns.json"
 SCALING = {"dlow": [f"scaling_cpu_dlow_run{i}.json" for i in (1, 2, 3)],
@@ -892,14 +894,47 @@ def speed_table() -> list[str]:
     return lines
 
 
+def _latest_stages(docs: list[dict]) -> list[dict]:
+    """Returns the `new` records of `docs` in their order, each stage's figures from the last document that measured it.
+
+    A stage measured again (matched by config file name and stage) keeps its place in the table; its record is the
+    later document's, so that its base figures are the later run's too.
+    """
+    last = {}
+    for d in docs:
+        for r in d["new"]:
+            for s in r.get("stages", []):
+                last[Path(r["config_file"]).name, s["stage"]] = (r, s)
+    out, seen = [], set()
+    for d in docs:
+        for r in d["new"]:
+            for s in r.get("stages", []):
+                key = Path(r["config_file"]).name, s["stage"]
+                if key in seen:
+                    continue
+                seen.add(key)
+                rec, stage = last[key]
+                if out and out[-1]["config_file"] == rec["config_file"] and out[-1]["source"] is rec:
+                    out[-1]["stages"].append(stage)
+                else:
+                    out.append(dict(rec, stages=[stage], source=rec))
+            if "error" in r:
+                out.append(dict(r, stages=[], source=r))
+    return [{k: v for k, v in r.items() if k != "source"} for r in out]
+
+
 def repro_cost_section() -> list[str]:
     """Returns the section on what reproducing each HumanEva-I release config costs (`benchmarks/repro_cost.py`)."""
     from benchmarks.repro_cost import table
 
     docs = [_bench(f) for f in REPRO_COST]
-    merged = dict(docs[0], new=[r for d in docs for r in d["new"]], base=[r for d in docs for r in d.get("base", [])])
-    against = [f"{', '.join(Path(r['config_file']).name for r in d['new'])} on the source of {d['base_label']}"
-               for d in docs if d.get("base")]
+    merged = dict(docs[0], new=_latest_stages(docs), base=[r for d in docs for r in d.get("base", [])])
+    by_label = {}  # the configs measured against each base, each named once
+    for d in docs:
+        if d.get("base"):
+            names = by_label.setdefault(d["base_label"], [])
+            names += [n for n in (Path(r["config_file"]).name for r in d["new"]) if n not in names]
+    against = [f"{', '.join(names)} on the source of {label}" for label, names in by_label.items()]
     base = (f" The base columns are the same configs ({'; '.join(against)}), measured in the same run"
             " (alternating, each stage's fastest round kept); `-` where only the current source was measured (unchanged code)."
             if against else "")

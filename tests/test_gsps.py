@@ -119,6 +119,16 @@ def _adam_step(opt, loss_fn, p, o):
     return optax.apply_updates(p, upd), o, loss
 
 
+def test_limb_directions_equal_bone_vectors_over_their_norms_with_the_same_gradients():
+    # The squared lengths added from the three coordinates (no size-3 reduction) against the plain formula.
+    frames = jnp.asarray(_data()[0][:16])
+    plain = lambda f: (lambda v: v / jnp.linalg.norm(v, axis=-1, keepdims=True))(gsps.bone_vectors(f, PARENTS)).reshape(f.shape)  # noqa: E731
+    np.testing.assert_allclose(gsps.limb_directions(frames, PARENTS), plain(frames), rtol=1e-6, atol=1e-6)
+    weights = jax.random.normal(jax.random.key(0), frames.shape)
+    grad = lambda fn: jax.grad(lambda f: jnp.sum(weights * fn(f)))(frames)  # noqa: E731
+    np.testing.assert_allclose(grad(lambda f: gsps.limb_directions(f, PARENTS)), grad(plain), rtol=1e-5, atol=1e-5)
+
+
 def test_limb_directions_are_unit_vectors():
     train, _ = _data()
     d = gsps.limb_directions(jnp.asarray(train[:10]), PARENTS).reshape(10, -1, 3)

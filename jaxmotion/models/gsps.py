@@ -147,7 +147,11 @@ def limb_directions(frames: Float[Array, "... d"], parents: tuple[int, ...]) -> 
     """Returns the unit limb directions `d_i = (p_i - p_parent(i)) / ||.||`, i = 1..J-1, flattened (GSPS Sec. 3.2)."""
     v = bone_vectors(frames, parents)
     # One reciprocal square root of the squared length, not a square root and a division: ||v|| floored at 1e-8.
-    v = v * jax.lax.rsqrt(jnp.maximum(jnp.sum(v * v, axis=-1, keepdims=True), 1e-16))
+    # The squared length as three products added, not a reduction over the size-3 axis: XLA:CPU fuses that
+    # reduction into the bone product's kernel, where it ran slower than the product itself
+    # (benchmarks/results/optimisations.md, "GSPS's prior: limb directions without a size-3 reduction").
+    sq = v[..., 0] * v[..., 0] + v[..., 1] * v[..., 1] + v[..., 2] * v[..., 2]
+    v = v * jax.lax.rsqrt(jnp.maximum(sq, 1e-16))[..., None]
     return v.reshape(frames.shape)
 
 
