@@ -465,7 +465,7 @@ HUMANEVA_WHY: dict[str, str] = {
 
 # Configs at a share of a release's budget, standing in for a release config whose full budget has no run yet
 # (its cost: the Benchmarks page's cost table). The row's budget column states the share.
-HUMANEVA_PARTIAL: dict[str, tuple[str, ...]] = {"gsps_humaneva": ("gsps_humaneva_10pct",)}
+HUMANEVA_PARTIAL: dict[str, tuple[str, ...]] = {"gsps_humaneva": ("gsps_humaneva_10pct",), "diffusion_humaneva": ("diffusion_humaneva_5pct",)}
 
 
 def humaneva_runs(config: str) -> list[str]:

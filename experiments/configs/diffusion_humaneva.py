@@ -1,8 +1,9 @@
 # jaxmotion run --config experiments/configs/diffusion_humaneva.py --data /path/to/data_3d_humaneva15.npz --workdir ~/jaxmotion-runs/humaneva/diffusion_s0 --seed 0 [--resume]
 # python experiments/plot_curves.py ~/jaxmotion-runs/humaneva/diffusion_s0
 # The paper's row (HumanMAC, ICCV 2023, Table 1, HumanEva-I, K = 50; arXiv 2302.03665):
-# APD 6.554, ADE 0.209, FDE 0.223, MMADE 0.342, MMFDE 0.320. Not checked against the table itself: the
-# stored copies of the paper reachable here showed its text, not Table 1; check before quoting.
+# APD 6.554, ADE 0.209, FDE 0.223, MMADE 0.342, MMFDE 0.320. Read from a later paper's HumanEva-I comparison
+# table that quotes HumanMAC's row (the same five numbers, beside DLow's and DivSamp's rows as this library
+# quotes them); the stored copies of HumanMAC's paper reachable here showed its text, not Table 1.
 # Release budget: 501 epochs x 781 batches of 64 (50,000 // 64): 391,281 steps, 25.0M windows.
 # Measured here (2-core Intel Xeon, family 6 model 167, AVX-512/AMX, 2.6 GHz, the cores shared with another
 # training run, load average 5.5, so upper bounds): 1.08 s/step (steps 2-8 of a tiny-budget copy of this
