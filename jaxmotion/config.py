@@ -129,6 +129,24 @@ def load_config(path: str | Path | None) -> Config:
     return cfg
 
 
+def budget_fraction(path: str | Path, fraction: float, **changes) -> Config:
+    """Returns the config file `path`'s config with its method's `num_steps` scaled by `fraction` and `changes` set.
+
+    A budget-reduced copy of a release config: the steps rounded to the nearest integer (at least 1); schedules
+    the method states as fractions of the run (learning-rate milestones, the constant stretch before a linear
+    decay) scale with it, and stages with their own step counts (a GSPS prior, a DLow CVAE) keep theirs. Example,
+    a config file holding a tenth of GSPS's generator budget:
+
+        def get_config():
+            return budget_fraction(Path(__file__).with_name("gsps_humaneva.py"), 0.1, name="gsps_humaneva_10pct")
+    """
+    if not 0 < fraction <= 1:
+        raise ConfigError(str(path), [f"budget_fraction: fraction must be in (0, 1], got {fraction}"])
+    base = load_config(path)
+    steps = max(1, round(base.method_config.num_steps * fraction))
+    return dataclasses.replace(base, method_config=dataclasses.replace(base.method_config, num_steps=steps), **changes)
+
+
 @contextlib.contextmanager
 def _config_code(path: Path, namespace: dict):
     """Turns an exception raised by the config file's own code into a `ConfigError` naming its line.

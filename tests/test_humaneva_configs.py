@@ -96,3 +96,26 @@ def test_test_windows_follow_dlows_iter_generator(tmp_path):
     for w, i, st in zip(prep.windows, prep.seq_index, prep.starts):
         np.testing.assert_allclose(w[:, :3], ds.test[i].positions[st : st + 75, 1] - ds.test[i].positions[st : st + 75, 0],
                                    atol=1e-6)
+
+
+def test_budget_fraction_scales_the_methods_steps_and_nothing_else(tmp_path):
+    """The stand-in configs' helper: the method's `num_steps` scaled and rounded, a stage's own steps (GSPS's
+    prior) and the fraction-of-run schedule kept, the changes applied; a fraction outside (0, 1] is a clear error."""
+    import dataclasses
+
+    from jaxmotion.config import budget_fraction
+    from jaxmotion.errors import ConfigError
+
+    base = load_config(CONFIGS / "gsps_humaneva.py")
+    got = budget_fraction(CONFIGS / "gsps_humaneva.py", 0.1, name="tenth", curve_every=625)
+    assert got.method_config.num_steps == round(base.method_config.num_steps * 0.1) == 6250
+    assert got.method_config.prior_num_steps == base.method_config.prior_num_steps
+    assert got.name == "tenth" and got.curve_every == 625
+    want = dataclasses.replace(base, name="tenth", curve_every=625,
+                               method_config=dataclasses.replace(base.method_config, num_steps=6250))
+    assert got == want
+    assert load_config(CONFIGS / "gsps_humaneva_10pct.py").method_config.num_steps == 6250
+    assert load_config(CONFIGS / "diffusion_humaneva_5pct.py").method_config.num_steps == 19564
+    for bad in (0.0, 1.5):
+        with pytest.raises(ConfigError, match=rf"fraction must be in \(0, 1\], got {bad}"):
+            budget_fraction(CONFIGS / "gsps_humaneva.py", bad)

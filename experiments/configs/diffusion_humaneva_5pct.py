@@ -11,18 +11,13 @@ the fraction beside the row.
 
     jaxmotion run --config experiments/configs/diffusion_humaneva_5pct.py --data PATH/data_3d_humaneva15.npz --seed 0
 """
-import dataclasses
 from pathlib import Path
 
-from jaxmotion.config import load_config
+from jaxmotion.config import budget_fraction
 
 FRACTION = 0.05
 
 
 def get_config():
-    base = load_config(Path(__file__).with_name("diffusion_humaneva.py"))
-    steps = round(base.method_config.num_steps * FRACTION)
-    return dataclasses.replace(
-        base, name="diffusion_humaneva_5pct", ckpt_every=1000, curve_every=2000, curve_windows=32, curve_k=10,
-        method_config=dataclasses.replace(base.method_config, num_steps=steps),
-    )
+    return budget_fraction(Path(__file__).with_name("diffusion_humaneva.py"), FRACTION, name="diffusion_humaneva_5pct",
+                           ckpt_every=1000, curve_every=2000, curve_windows=32, curve_k=10)

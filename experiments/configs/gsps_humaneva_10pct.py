@@ -8,18 +8,13 @@ plotting). The Results page's HumanEva-I table states the fraction beside the ro
 
     jaxmotion run --config experiments/configs/gsps_humaneva_10pct.py --data PATH/data_3d_humaneva15.npz --seed 0
 """
-import dataclasses
 from pathlib import Path
 
-from jaxmotion.config import load_config
+from jaxmotion.config import budget_fraction
 
 FRACTION = 0.1
 
 
 def get_config():
-    base = load_config(Path(__file__).with_name("gsps_humaneva.py"))
-    steps = round(base.method_config.num_steps * FRACTION)
-    return dataclasses.replace(
-        base, name="gsps_humaneva_10pct", ckpt_every=625, curve_every=625,
-        method_config=dataclasses.replace(base.method_config, num_steps=steps),
-    )
+    return budget_fraction(Path(__file__).with_name("gsps_humaneva.py"), FRACTION, name="gsps_humaneva_10pct",
+                           ckpt_every=625, curve_every=625)
