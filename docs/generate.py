@@ -465,7 +465,9 @@ HUMANEVA_WHY: dict[str, str] = {
 
 # Configs at a share of a release's budget, standing in for a release config whose full budget has no run yet
 # (its cost: the Benchmarks page's cost table). The row's budget column states the share.
-HUMANEVA_PARTIAL: dict[str, tuple[str, ...]] = {"gsps_humaneva": ("gsps_humaneva_10pct",), "diffusion_humaneva": ("diffusion_humaneva_5pct",)}
+HUMANEVA_PARTIAL: dict[str, tuple[str, ...]] = {
+    "gsps_humaneva": ("gsps_humaneva_10pct",), "diffusion_humaneva": ("diffusion_humaneva_5pct",),
+}
 
 
 def humaneva_runs(config: str) -> list[str]:
@@ -895,32 +897,23 @@ def speed_table() -> list[str]:
 
 
 def _latest_stages(docs: list[dict]) -> list[dict]:
-    """Returns the `new` records of `docs` in their order, each stage's figures from the last document that measured it.
+    """Returns the `new` records of `docs` as one record per stage, in the order the stages were first measured.
 
     A stage measured again (matched by config file name and stage) keeps its place in the table; its record is the
-    later document's, so that its base figures are the later run's too.
+    later document's, so that its base figures are the later run's too. A record's error stays a record of its own.
     """
-    last = {}
+    latest, order = {}, []
     for d in docs:
         for r in d["new"]:
-            for s in r.get("stages", []):
-                last[Path(r["config_file"]).name, s["stage"]] = (r, s)
-    out, seen = [], set()
-    for d in docs:
-        for r in d["new"]:
+            stage_record = {k: v for k, v in r.items() if k != "error"}
             for s in r.get("stages", []):
                 key = Path(r["config_file"]).name, s["stage"]
-                if key in seen:
-                    continue
-                seen.add(key)
-                rec, stage = last[key]
-                if out and out[-1]["config_file"] == rec["config_file"] and out[-1]["source"] is rec:
-                    out[-1]["stages"].append(stage)
-                else:
-                    out.append(dict(rec, stages=[stage], source=rec))
+                order += [key] * (key not in latest)
+                latest[key] = dict(stage_record, stages=[s])
             if "error" in r:
-                out.append(dict(r, stages=[], source=r))
-    return [{k: v for k, v in r.items() if k != "source"} for r in out]
+                order.append(id(r))
+                latest[id(r)] = dict(r, stages=[])
+    return [latest[k] for k in order]
 
 
 def repro_cost_section() -> list[str]:

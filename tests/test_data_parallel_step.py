@@ -23,9 +23,10 @@ import pytest
 
 TIMEOUT = 900
 DEVICES = 4
-# Stages whose 4-device training tests/test_distributed.py checks against one device over whole runs (DLow's
-# two stages, DivSamp's CVAE): not compiled again here. DLow's CVAE in micro-batches: the last test below.
-COVERED = ("dlow/cvae", "dlow/dlow_k4", "divsamp/cvae")
+# Stages whose 4-device training tests/test_distributed.py checks against one device over whole runs, not
+# compiled again here: DivSamp's CVAE, and both of DLow's (so DLow is not among the configs below; its CVAE in
+# micro-batches: the last test below).
+COVERED = ("divsamp/cvae",)
 
 
 def _configs() -> dict:
@@ -225,7 +226,7 @@ def _assert_metrics_equal(got: dict, want: dict, what: str) -> None:
 def test_every_method_and_stage_steps_on_four_devices_as_on_one(worker):
     out, result = worker
     steps = result["steps"]
-    # Every trained stage of every method but COVERED (computed stages, e.g. MotionMap's codebook, train nothing).
+    # Every trained stage of every method but DLow's and COVERED (computed stages, e.g. MotionMap's codebook, train nothing).
     assert sorted(steps) == sorted([
         "mojo/cvae", "mojo/q_k4", "divsamp/sampler", "gsps/prior", "gsps/generator",
         "motionmap/autoencoder", "motionmap/heatmap", "motionmap/finetune",
