@@ -1,0 +1,136 @@
+"""Trains the HumanEva-I table's runs one after another and keeps each finished run's results.
+
+    python experiments/reproduce_humaneva.py --data PATH [--runs-dir ~/jaxmotion-runs/humaneva] \\
+        [--lock /tmp/jaxmotion-heavy.lock] [--runs CONFIG:SEED ...] [--list]
+
+Each run is `jaxmotion run --config experiments/configs/<config>.py --data PATH --seed <seed>` into
+`--runs-dir/<config>_s<seed>`, in the order of `RUNS` (the table's rows at the release budgets, second
+seeds before the longest runs; `--runs` names others, e.g. a diagnostic). A run whose
+`<config>_s<seed>_metrics.json` is already in `--results` is skipped; a run whose folder exists goes on
+from its last checkpoint (`--resume`). When a run ends, its `metrics.json`, learning curve
+(`<config>_s<seed>_curve.json`) and picture (`<config>_s<seed>_curves.png`) are copied into `--results`,
+the files the Results page is generated from (`docs/generate.py`). Stop it at any time (Ctrl-C) and run
+the same command again to go on: the whole table is about 45 hours on a 2-core CPU (the Benchmarks page,
+"What reproduction costs").
+
+The runs use the library of the checkout this script is in: run it from a clone frozen at one commit, so
+that a run that spans several sittings is trained by one code, with `--results` pointing at the checkout
+where the results are committed. `--lock FILE` holds that lock (`flock`) around each run, so that other
+heavy jobs on the machine wait for it. HumanEva-I is licensed: read it from a path outside the repository.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import plot_curves  # noqa: E402  (a sibling script)
+
+# The table's runs in order: DLow and MOJO's three variants at the release budget with two seeds (the
+# second seeds of the cheap ones first), then the budget-reduced GSPS and diffusion stand-ins, then DivSamp's
+# full budget, the longest.
+RUNS: tuple[tuple[str, int], ...] = (
+    ("dlow_humaneva", 0), ("dlow_humaneva", 1),
+    ("mojo_vae_dct_humaneva", 0), ("mojo_vae_dct_humaneva", 1),
+    ("mojo_vae_dct5_humaneva", 0), ("mojo_vae_dct20_humaneva", 0),
+    ("mojo_vae_dct5_humaneva", 1), ("mojo_vae_dct20_humaneva", 1),
+    ("gsps_humaneva_10pct", 0), ("divsamp_humaneva", 0), ("diffusion_humaneva_5pct", 0),
+)
+
+
+def parse_run(text: str) -> tuple[str, int]:
+    """Returns `(config, seed)` from `CONFIG:SEED` (a config name of `experiments/configs/`, without `.py`)."""
+    config, sep, seed = text.partition(":")
+    config = config.removesuffix(".py").split("/")[-1]
+    if not sep or not seed.isdigit():
+        raise argparse.ArgumentTypeError(f"{text!r}: expected CONFIG:SEED, e.g. dlow_humaneva:1")
+    if not (ROOT / "experiments" / "configs" / f"{config}.py").is_file():
+        raise argparse.ArgumentTypeError(f"{text!r}: no config experiments/configs/{config}.py")
+    return config, int(seed)
+
+
+def pending(runs: list[tuple[str, int]], results: Path) -> list[tuple[str, int]]:
+    """Returns the runs whose metrics are not in `results` yet, in order."""
+    return [(c, s) for c, s in runs if not (results / f"{c}_s{s}_metrics.json").is_file()]
+
+
+def command(config: str, seed: int, data: Path, workdir: Path, lock: Path | None) -> list[str]:
+    """Returns the command that trains and evaluates one run (resuming when its folder exists)."""
+    cmd = [sys.executable, "-m", "jaxmotion.cli", "run", "--config", str(ROOT / "experiments" / "configs" / f"{config}.py"),
+           "--data", str(data), "--workdir", str(workdir), "--seed", str(seed)]
+    if workdir.is_dir() and any(workdir.iterdir()):
+        cmd.append("--resume")
+    return (["flock", str(lock)] if lock else []) + cmd
+
+
+def collect(run: Path, results: Path) -> list[Path]:
+    """Copies a finished run's metrics, learning curve and picture into `results`; returns the files written."""
+    records = json.loads((run / "metrics.json").read_text())
+    stem = f"{records[0]['config']['name']}_s{records[0]['seed']}"
+    results.mkdir(parents=True, exist_ok=True)
+    written = [results / f"{stem}_metrics.json"]
+    shutil.copyfile(run / "metrics.json", written[0])
+    curves = plot_curves.load_curves(run)
+    if curves:
+        _, rec = plot_curves.curve_record(run, curves)
+        written.append(results / f"{stem}_curve.json")
+        written[-1].write_text(json.dumps(rec, indent=1) + "\n")
+        written.append(results / f"{stem}_curves.png")
+        plot_curves.plot([(stem, curves)], written[-1])
+    return written
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--data", type=Path, help="VideoPose3D's data_3d_humaneva15.npz")
+    ap.add_argument("--runs-dir", type=Path, default=Path.home() / "jaxmotion-runs" / "humaneva")
+    ap.add_argument("--results", type=Path, default=ROOT / "experiments" / "results" / "humaneva",
+                    help="where finished runs' metrics, curves and pictures go")
+    ap.add_argument("--runs", nargs="+", type=parse_run, default=None, metavar="CONFIG:SEED",
+                    help="these runs instead of the table's (default: RUNS)")
+    ap.add_argument("--lock", type=Path, default=None, help="hold this file's lock (flock) around each run")
+    ap.add_argument("--list", action="store_true", help="print the runs still to do and stop")
+    args = ap.parse_args(argv)
+    todo = pending(list(args.runs or RUNS), args.results)
+    if args.list or not todo:
+        print("\n".join(f"{c}:{s}" + (" (started)" if (args.runs_dir / f"{c}_s{s}").is_dir() else "") for c, s in todo)
+              or f"every run has its metrics in {args.results}")
+        return 0
+    if args.data is None or not args.data.is_file():
+        ap.error(f"--data: {args.data} is not a file (VideoPose3D's data_3d_humaneva15.npz)")
+    if args.lock and not shutil.which("flock"):
+        ap.error("--lock needs the flock command (util-linux)")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
+    for i, (config, seed) in enumerate(todo, 1):
+        workdir = args.runs_dir / f"{config}_s{seed}"
+        log = args.runs_dir / f"{config}_s{seed}.out"
+        if not (workdir / "metrics.json").is_file():
+            cmd = command(config, seed, args.data, workdir, args.lock)
+            print(f"[{i}/{len(todo)}] {config} seed {seed}{' (resuming)' if '--resume' in cmd else ''}: progress in {log}",
+                  flush=True)
+            args.runs_dir.mkdir(parents=True, exist_ok=True)
+            try:
+                with open(log, "a") as out:
+                    rc = subprocess.run(cmd, stdout=out, stderr=subprocess.STDOUT, env=env, cwd=ROOT).returncode
+            except KeyboardInterrupt:
+                print(f"stopped during {config} seed {seed}: run the same command to go on from its last checkpoint",
+                      file=sys.stderr)
+                return 130
+            if rc != 0:
+                print(f"{config} seed {seed} failed (exit status {rc}): see the end of {log}", file=sys.stderr)
+                return 1
+        for p in collect(workdir, args.results):
+            print(f"  {p}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
