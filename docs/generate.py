@@ -459,7 +459,9 @@ HUMANEVA_WHY: dict[str, str] = {
                "where its APD is the paper's 0.97, our model's ADE and FDE are 6-10% above the paper's "
                "(`experiments/latent_scale.py`, `humaneva/latent_scale/`). So the difference is the trained model, not the "
                "sampler: MOJO's HumanEva-I settings are not released (the robust KLD and 16 latent numbers per DCT band are "
-               "this library's reading of its paper), and which of them moves the curve is not yet measured",
+               "this library's reading of its paper). Measured: the plain KLD for the robust one changes nothing (the same "
+               "figures to the fourth digit, `humaneva/kld/`: DLow's objective sums the KLD per window, where Psi(s) is s - 1); "
+               "MOJO's own objective (its Eq. (1)) is not yet measured",
 }
 
 
