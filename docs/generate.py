@@ -454,14 +454,9 @@ HUMANEVA_ROWS = [
 ]
 # Why a row is not reproduced, by label, shown after its verdict: what is known and what is not yet measured.
 HUMANEVA_WHY: dict[str, str] = {
-    "VAE+DCT": "ADE matches; FDE is 9% lower (better) than the paper's on both seeds, at 1.8 times the paper's APD. "
-               "The paper's row is not on our model's diversity-accuracy curve: drawn from N(0, s^2 I) with s = 0.5 to 0.6, "
-               "where its APD is the paper's 0.97, our model's ADE and FDE are 6-10% above the paper's "
-               "(`experiments/latent_scale.py`, `humaneva/latent_scale/`). So the difference is the trained model, not the "
-               "sampler: MOJO's HumanEva-I settings are not released (the robust KLD and 16 latent numbers per DCT band are "
-               "this library's reading of its paper). Measured: the plain KLD for the robust one changes nothing (the same "
-               "figures to the fourth digit, `humaneva/kld/`: DLow's objective sums the KLD per window, where Psi(s) is s - 1); "
-               "MOJO's own objective (its Eq. (1)) is not yet measured",
+    "VAE+DCT": "trained with MOJO's objective (its Eq. (1)), as the config says; with DLow's objective instead "
+               "(`humaneva/dlow_loss/`, two seeds) ADE matched but FDE was 9% lower at 1.8 times the paper's APD, and the "
+               "robust KLD was inert there (`humaneva/kld/`)",
 }
 
 

@@ -65,7 +65,7 @@ def config_differences(recorded: dict, committed: dict) -> list[str]:
 HUMANEVA_RUNS = sorted({f for *_, config, _ in generate.HUMANEVA_ROWS for f in generate.humaneva_runs(config)})
 # The diagnostics of a HumanEva-I row, each with a config of its own (`sampler/` is not: its run differed from
 # `mojo_vae_dct_humaneva.py` in `train_sampler` alone, as its README says).
-HUMANEVA_DIAGNOSTICS = sorted(str(p.relative_to(generate.EXP)) for d in ("kld", "loss", "dlow_loss")
+HUMANEVA_DIAGNOSTICS = sorted(str(p.relative_to(generate.EXP)) for d in ("kld", "dlow_loss")
                               for p in (generate.EXP / "humaneva" / d).glob("*_metrics.json"))
 # Runs recorded under the name their config had then, whose settings now live in a config of another name.
 RECORDED_UNDER = {"humaneva/dlow_loss": "mojo_vae_dct_humaneva_dlow_loss"}
