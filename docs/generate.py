@@ -454,11 +454,11 @@ HUMANEVA_ROWS = [
 ]
 # Why a row is not reproduced, by label, shown after its verdict: what is known and what is not yet measured.
 HUMANEVA_WHY: dict[str, str] = {
-    "VAE+DCT": "FDE alone misses: 7% lower (better) than the paper's on the mean of two seeds whose FDE differ by 11% "
-               "(0.289, 0.261), the paper's 0.296 2% above the higher; ADE, MMADE and MMFDE are within 6%, APD is 0.74 "
+    "VAE+DCT": "FDE alone misses: 6% lower (better) than the paper's on the mean of three seeds whose FDE span 11% "
+               "(0.289, 0.261, 0.283), the paper's 0.296 2% above the highest; ADE, MMADE and MMFDE are within 6%, APD is 0.73 "
                "against 0.97. Trained with MOJO's objective (its Eq. (1)), as the config says why; with DLow's objective "
                "(`humaneva/dlow_loss/`, two seeds) APD was 1.76, MMADE and MMFDE 10% and 20% lower, FDE 9% lower, and "
-               "the robust KLD inert (`humaneva/kld/`). A third seed would tell whether the FDE gap is the seeds' spread",
+               "the robust KLD inert (`humaneva/kld/`)",
 }
 
 
