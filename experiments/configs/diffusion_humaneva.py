@@ -1,5 +1,5 @@
-# jaxmotion run --config experiments/configs/diffusion_humaneva.py --data /path/to/data_3d_humaneva15.npz --workdir ~/jaxmotion-runs/humaneva/diffusion_s0 --seed 0 [--resume]
-# python experiments/plot_curves.py ~/jaxmotion-runs/humaneva/diffusion_s0
+# jaxmotion run --config experiments/configs/diffusion_humaneva.py --data /path/to/data_3d_humaneva15.npz --workdir ~/jaxmotion-runs/humaneva/diffusion_humaneva_s0 --seed 0 [--resume]
+# python experiments/plot_curves.py ~/jaxmotion-runs/humaneva/diffusion_humaneva_s0
 # The paper's row (HumanMAC, ICCV 2023, Table 1, HumanEva-I, K = 50; arXiv 2302.03665):
 # APD 6.554, ADE 0.209, FDE 0.223, MMADE 0.342, MMFDE 0.320. Read from a later paper's HumanEva-I comparison
 # table that quotes HumanMAC's row (the same five numbers, beside DLow's and DivSamp's rows as this library

@@ -1,5 +1,5 @@
-# jaxmotion run --config experiments/configs/divsamp_humaneva.py --data /path/to/data_3d_humaneva15.npz --workdir ~/jaxmotion-runs/humaneva/divsamp_s0 --seed 0 [--resume]
-# python experiments/plot_curves.py ~/jaxmotion-runs/humaneva/divsamp_s0
+# jaxmotion run --config experiments/configs/divsamp_humaneva.py --data /path/to/data_3d_humaneva15.npz --workdir ~/jaxmotion-runs/humaneva/divsamp_humaneva_s0 --seed 0 [--resume]
+# python experiments/plot_curves.py ~/jaxmotion-runs/humaneva/divsamp_humaneva_s0
 # The paper's row (DivSamp's Table 1, K = 50): APD 6.109, ADE 0.220, FDE 0.234, MMADE 0.342, MMFDE 0.316.
 # Release budget: CVAE 2000 epochs x 62 batches of 32 (124,000 steps, 3.97M windows); sampler 1500 epochs
 # x 125 batches of 16 (187,500 steps, 3.0M windows, K = 50 futures each).

@@ -1,5 +1,5 @@
-# flock /tmp/jaxmotion-heavy.lock jaxmotion run --config experiments/configs/dlow_humaneva.py --data /path/to/data_3d_humaneva15.npz --workdir ~/jaxmotion-runs/humaneva/dlow_s0 --seed 0 [--resume]
-# python experiments/plot_curves.py ~/jaxmotion-runs/humaneva/dlow_s0
+# flock /tmp/jaxmotion-heavy.lock jaxmotion run --config experiments/configs/dlow_humaneva.py --data /path/to/data_3d_humaneva15.npz --workdir ~/jaxmotion-runs/humaneva/dlow_humaneva_s0 --seed 0 [--resume]
+# python experiments/plot_curves.py ~/jaxmotion-runs/humaneva/dlow_humaneva_s0
 """DLow on HumanEva-I at the release's full budget (`motion_pred/cfg/humaneva_nsamp50.yml` of the DLow release).
 
 CVAE: nz 128, beta 0.01, lambda_v 1000, lr 1e-3, batch 64, 500 epochs of 1,000 sampled windows

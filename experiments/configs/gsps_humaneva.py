@@ -1,5 +1,5 @@
-# jaxmotion run --config experiments/configs/gsps_humaneva.py --data /path/to/data_3d_humaneva15.npz --workdir ~/jaxmotion-runs/humaneva/gsps_s0 --seed 0 [--resume]
-# python experiments/plot_curves.py ~/jaxmotion-runs/humaneva/gsps_s0
+# jaxmotion run --config experiments/configs/gsps_humaneva.py --data /path/to/data_3d_humaneva15.npz --workdir ~/jaxmotion-runs/humaneva/gsps_humaneva_s0 --seed 0 [--resume]
+# python experiments/plot_curves.py ~/jaxmotion-runs/humaneva/gsps_humaneva_s0
 # The paper's row (DivSamp's Table 1, K = 50): APD 5.825, ADE 0.233, FDE 0.244, MMADE 0.343, MMFDE 0.331.
 # Release budget: prior 25 epochs x 48 batches of 4096 frames (1,200 steps); generator 500 epochs x 125
 # batches of 16 windows (62,500 steps, 1.0M windows, 10 x 10 = 100 futures each).

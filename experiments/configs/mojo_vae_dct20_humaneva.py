@@ -1,4 +1,4 @@
-# flock /tmp/jaxmotion-heavy.lock jaxmotion run --config experiments/configs/mojo_vae_dct20_humaneva.py --data /path/to/data_3d_humaneva15.npz --workdir ~/jaxmotion-runs/humaneva/mojo_vae_dct20_s0 --seed 0 [--resume]
+# flock /tmp/jaxmotion-heavy.lock jaxmotion run --config experiments/configs/mojo_vae_dct20_humaneva.py --data /path/to/data_3d_humaneva15.npz --workdir ~/jaxmotion-runs/humaneva/mojo_vae_dct20_humaneva_s0 --seed 0 [--resume]
 #
 # MOJO's VAE+DCT+20 on HumanEva-I (DLow on the lowest 20 of 60 DCT bands): mojo_vae_dct_humaneva.py says
 # which settings and why. Its "mojo_prior" predictor is the same run's VAE+DCT.

@@ -1,4 +1,4 @@
-# flock /tmp/jaxmotion-heavy.lock jaxmotion run --config experiments/configs/mojo_vae_dct_humaneva.py --data /path/to/data_3d_humaneva15.npz --workdir ~/jaxmotion-runs/humaneva/mojo_vae_dct_s0 --seed 0 [--resume]
+# flock /tmp/jaxmotion-heavy.lock jaxmotion run --config experiments/configs/mojo_vae_dct_humaneva.py --data /path/to/data_3d_humaneva15.npz --workdir ~/jaxmotion-runs/humaneva/mojo_vae_dct_humaneva_s0 --seed 0 [--resume]
 """MOJO's HumanEva-I ablation (MOJO paper, Table 2): VAE+DCT, and VAE+DCT+L in mojo_vae_dct{5,20}_humaneva.py.
 
 MOJO's release holds AMASS configs only; its paper builds these rows on DLow's CVAE with the robust

@@ -1,4 +1,4 @@
-# flock /tmp/jaxmotion-heavy.lock jaxmotion run --config experiments/configs/mojo_vae_dct_humaneva_plain_kld.py --data /path/to/data_3d_humaneva15.npz --workdir ~/jaxmotion-runs/humaneva/he_mojo_vae_dct_plain_kld_s0 --seed 0 [--resume]
+# flock /tmp/jaxmotion-heavy.lock jaxmotion run --config experiments/configs/mojo_vae_dct_humaneva_plain_kld.py --data /path/to/data_3d_humaneva15.npz --workdir ~/jaxmotion-runs/humaneva/mojo_vae_dct_humaneva_plain_kld_s0 --seed 0 [--resume]
 """A diagnostic of the VAE+DCT row, not a row of the table: `mojo_vae_dct_humaneva_dlow_loss.py` (DLow's CVAE
 objective) with the plain KLD (beta KLD) instead of MOJO's robust one (beta Psi(KLD)), everything else the same.
 
