@@ -6,6 +6,7 @@
     flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab decoder_backward    # ~4 min
     flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab gcn_node_major      # ~6 min
     flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab gsps_best_of        # ~3 min
+    flock /tmp/jaxmotion-heavy.lock python benchmarks/ab.py --ab jax_host_devices    # ~3 min
     python benchmarks/ab.py --cases dlow/train_cvae --repeats 3                      # a subset
 
 `--ab precision`: float32 against bfloat16 products (`Config.precision = "bf16"`,
@@ -20,6 +21,8 @@ each weight's gradient one product after the loop (`Execution.decoder_backward`,
 `(..., J, F)` against node-major `(J, ..., F)` inside (`Execution.gcn_node_major`, `nn/gcn.py` `GCLStack.node_major`).
 `--ab gsps_best_of`: GSPS's best-of-K squared errors (against the truth and every pseudo future) by
 differencing every pair against `|a|^2 + |m|^2 - 2 a.m` (`models/gsps.py` `generator_loss(best_of=...)`).
+`--ab jax_host_devices`: the diffusion sampler on one device against its K samples split over two CPU host
+devices (`models/diffusion.py` `sample(devices=...)`; the process starts jax with two forced host devices).
 Each case of `benchmarks/run.py`'s plan named in `--cases` is built twice by the benchmark's own
 builders (`jax_bench.Builders`, the same sizes and functions), once per setting, and the two are
 timed alternately, `--rounds` rounds of `--repeats` calls each, so that drift in the machine's speed
@@ -36,6 +39,7 @@ import argparse
 import dataclasses
 import datetime
 import json
+import os
 import statistics
 import sys
 import time
@@ -55,6 +59,7 @@ KNOBS = {
     "decoder_backward": (("autodiff", "batched"), ("autodiff", "batched")),
     "gcn_node_major": ((False, True), ("batch-major", "node-major")),
     "gsps_best_of": (("pairwise", "gram"), ("pairwise", "gram")),
+    "jax_host_devices": ((1, 2), ("1-device", "2-devices")),
 }
 DEFAULT_CASES = {"precision": (
     "dlow/train_cvae/b64", "dlow/train_sampler/b16/k50", "dlow/sample/b64/k50",
@@ -72,6 +77,7 @@ DEFAULT_CASES["gcn_node_major"] = (  # the cases with graph convolutions (DivSam
     "gsps/train_generator", "gsps/sample/b64/k50",
 )
 DEFAULT_CASES["gsps_best_of"] = ("gsps/train_generator",)
+DEFAULT_CASES["jax_host_devices"] = ("diffusion/sample_ddim/b1/k50/t60/s100", "diffusion/sample_ddim/b64/k50/t60/s10")
 
 
 def _matches(name: str, patterns: list[str]) -> bool:
@@ -90,6 +96,9 @@ def main(argv=None):
     values, labels = KNOBS[args.ab]
     args.cases = args.cases or list(DEFAULT_CASES[args.ab])
     args.out = args.out or ROOT / "benchmarks" / "results" / f"{args.ab}_ab.json"
+    if args.ab == "jax_host_devices":  # the process needs the host devices before jax starts
+        flags = os.environ.get("XLA_FLAGS", "")
+        os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={max(values)}".strip()
     import jax
 
     from benchmarks.jax_bench import Builders

@@ -63,6 +63,9 @@ class Settings:
     ddim_steps: tuple[int, ...] = (100, 10)  # the diffusion predictor's DDIM steps, each timed at every sampling batch
     ddim_warmup: int = 1  # the diffusion cases' own warm-up and repeat counts: one K = 50 batch of 64 at 100 steps
     ddim_repeats: int = 3  # is tens of seconds per call in PyTorch on a 2-core CPU
+    # CPU host devices of the jax worker (`--xla_force_host_platform_device_count`); above 1 the diffusion
+    # sampler splits its K samples over them (`diffusion.sample(devices=...)`), every other case runs on one.
+    jax_host_devices: int = 1
 
     @classmethod
     def from_dict(cls, d: dict) -> "Settings":

@@ -217,8 +217,19 @@ class Builders:
         x0 = jnp.zeros((1, model.n_dct, s.dim))
         p = model.init(jax.random.key(0), x0, jnp.ones((1,), jnp.int32), x0, jnp.ones((1,)))
         abar = diffusion.schedule("cosine", DIFFUSION_NOISE_STEPS)
-        fn = lambda p, x, key: diffusion.sample(model, p, x, key, c.k, t_pred=c.t_pred, abar=abar, sampling_steps=c.steps)
-        return _sample_runner(fn, p, self.data(c.batch, s.t_his), jax.random.key(2))
+        devices = None
+        if s.jax_host_devices > 1:
+            if jax.local_device_count() < s.jax_host_devices:
+                raise RuntimeError(f"jax_host_devices = {s.jax_host_devices}, but jax has {jax.local_device_count()} local "
+                                   "device(s): run.py sets XLA_FLAGS for the jax worker")
+            devices = jax.local_devices()[:s.jax_host_devices]
+        fn = lambda p, x, key, devices=devices: diffusion.sample(model, p, x, key, c.k, t_pred=c.t_pred, abar=abar,
+                                                                 sampling_steps=c.steps, devices=devices)
+        args = (p, self.data(c.batch, s.t_his), jax.random.key(2))
+        run, tr, co = _sample_runner(fn, *args)
+        # The FLOPs of the whole sampler: the cost analysis of a program split over devices counts one device's share.
+        run.count = lambda: flops.count(functools.partial(fn, devices=None), *args)
+        return run, tr, co
 
 
 def matmul_probe(n: int):

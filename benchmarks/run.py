@@ -57,6 +57,14 @@ def worker_env(huge: bool) -> dict:
     return hugepages.with_tunable(dict(os.environ, PYTHONPATH=str(ROOT)), on=huge)
 
 
+def jax_env(env: dict, settings: Settings) -> dict:
+    """Returns the jax worker's environment: `env` with `settings.jax_host_devices` CPU host devices forced."""
+    if settings.jax_host_devices <= 1:
+        return env
+    flags = f"{env.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={settings.jax_host_devices}".strip()
+    return dict(env, XLA_FLAGS=flags)
+
+
 def run_worker(name: str, settings: Settings, extra: list[str], env: dict) -> dict:
     """Returns the worker's `{"info", "records"}` after running it in a fresh Python process."""
     with tempfile.TemporaryDirectory() as tmp:
@@ -298,7 +306,10 @@ def _ddim_table(rows: list[dict], s: Settings, peak: float | None) -> list[str]:
         "steps, the K samples in the batch of every product; PyTorch: the release's Python loop over the steps)",
         "",
         f"Denoiser of `DiffusionConfig`'s defaults (Bandai CPU sizes). Median of {s.ddim_repeats} calls after "
-        f"{s.ddim_warmup} warm-up call(s).",
+        f"{s.ddim_warmup} warm-up call(s)."
+        + (f" jaxmotion's K samples split over {s.jax_host_devices} CPU host devices (`sample(devices=...)`, "
+           f"`XLA_FLAGS=--xla_force_host_platform_device_count={s.jax_host_devices}`), {s.k // s.jax_host_devices} on each."
+           if s.jax_host_devices > 1 else ""),
         "",
         "| DDIM steps | batch | jaxmotion ms | PyTorch eager ms | torch.compile ms | ratio (eager) | ratio (compile) | GFLOP | % of peak jax / eager / compile | target |",
         "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
@@ -418,6 +429,8 @@ def main(argv=None):
                     help="leave out a call whose probe product after it took more than this times its fastest "
                          "(harness.measure's gate, e.g. 1.5; default 0: off, every call counted and the probe recorded)")
     ap.add_argument("--ddim-steps", help="the diffusion sampler's DDIM steps, comma-separated (default 100,10)")
+    ap.add_argument("--jax-host-devices", type=int,
+                    help="CPU host devices of the jax worker; the diffusion sampler splits K over them (default 1)")
     ap.add_argument("--render", action="store_true", help="only re-render the tables from the results file of --tag")
     args = ap.parse_args(argv)
     if args.render:
@@ -437,11 +450,17 @@ def main(argv=None):
         kw["warmup"] = args.warmup
     if args.ddim_steps:
         kw["ddim_steps"] = tuple(int(v) for v in args.ddim_steps.split(","))
+    if args.jax_host_devices is not None:
+        if args.jax_host_devices < 1:
+            ap.error(f"--jax-host-devices must be 1 or more, got {args.jax_host_devices}")
+        kw["jax_host_devices"] = args.jax_host_devices
     if args.slow_factor is not None:
         if args.slow_factor < 0 or 0 < args.slow_factor <= 1:
             ap.error(f"--slow-factor must be 0 (off) or above 1, got {args.slow_factor}")
         kw["slow_factor"] = args.slow_factor
     settings = Settings.quick(**kw) if args.quick else Settings(**kw)
+    if settings.k % settings.jax_host_devices:
+        ap.error(f"--jax-host-devices {settings.jax_host_devices}: K = {settings.k} does not split evenly over them")
     tag = args.tag or ("quick" if args.quick else "cpu")
     out = ROOT / "benchmarks" / "results" / f"{tag}.json"
     frameworks = [f for f in args.frameworks.split(",") if f]
@@ -465,7 +484,8 @@ def main(argv=None):
     for fw in frameworks:
         if fw == "torch_compile" and not args.compile_cases:
             continue
-        results[fw] = run_worker(fw, settings, ["--cases", args.compile_cases] if fw == "torch_compile" else [], env)
+        results[fw] = run_worker(fw, settings, ["--cases", args.compile_cases] if fw == "torch_compile" else [],
+                                 jax_env(env, settings) if fw == "jax" else env)
     results = {fw: results[fw] for fw in WORKERS if fw in results}
     doc = {
         "date": datetime.datetime.now().isoformat(timespec="seconds"),

@@ -95,6 +95,9 @@ ON_SKELETON = "projection_bandai.json"  # experiments/projection_effect.py  # be
 # benchmarks/run.py: three full runs of the same code, back to back.
 SPEED_RUNS = ["cpu_amd_bracket_full_run1.json", "cpu_amd_bracket_full_run2.json", "cpu_amd_bracket_full_run3.json"]
 DIFFUSION_SPEED = "diffusion_cpu_fast.json"
+# The same command with the K samples split over two CPU host devices (`--jax-host-devices 2`), on the same machine.
+DIFFUSION_SPEED_DEVICES = "diffusion_cpu_devices.json"
+DIFFUSION_DEVICES_AB = "jax_host_devices_ab.json"  # benchmarks/ab.py --ab jax_host_devices: one device against two
 # Where the sampler's time goes (benchmarks/results/diffusion.md, from an XLA profile of the batch-64 case).
 DDIM_PROFILE = (
     "The 3x is not reached. Where the time goes (XLA profile of batch 64, `benchmarks/results/diffusion.md`): the\n"
@@ -998,6 +1001,34 @@ def _ddim_reason(doc: dict) -> list[str]:
     return lines + ["", DDIM_PROFILE]
 
 
+def _ddim_devices_section(split: dict, ab: dict) -> list[str]:
+    """Returns the diffusion sampler's table with K split over CPU host devices, and the in-process A/B against one device."""
+    from benchmarks.harness import Settings
+    from benchmarks.run import _ddim_table, machine_peak
+
+    s = Settings.from_record(split["settings"])
+    gains = [f"{r['case'].split('/', 2)[2]}: {r['1-device_ms']:,.0f} -> {r['2-devices_ms']:,.0f} ms ({r['ratio']:.2f}x)"
+             for r in ab["rows"]]
+    return [
+        f"### K over {s.jax_host_devices} CPU host devices",
+        "",
+        f"`sample(..., devices=jax.local_devices())` in a process started with "
+        f"`XLA_FLAGS=--xla_force_host_platform_device_count={s.jax_host_devices}`: each host device runs its share of K "
+        "as its own stream of XLA operations, which uses the core that one stream of small operations leaves mostly "
+        "idle (process CPU time over wall time, one device: about 1.7 at batch 1 and 1.8 at batch 64; two: 2.0). The "
+        "futures are the one-device sampler's (`tests/test_diffusion.py`).",
+        "",
+        *_ddim_table(split["rows"], s, machine_peak(split))[3:],
+        "",
+        f"How measured: `{split['command']}` ({_machine(split)}; `{DIFFUSION_SPEED_DEVICES}`), one run. One device "
+        f"against two in one process, alternating (`{ab['command']}`, {ab['rounds']} rounds of {ab['repeats']} calls, "
+        f"medians; `{DIFFUSION_DEVICES_AB}`): " + "; ".join(gains) + ". Each table's ratios come from its own run "
+        "(PyTorch measured beside jaxmotion); the A/B, in one process, is the like-for-like comparison of the two "
+        "jaxmotion settings.",
+        "",
+    ]
+
+
 def benchmarks_page() -> str:
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from benchmarks.harness import Settings
@@ -1050,6 +1081,7 @@ def benchmarks_page() -> str:
         "",
         *_ddim_reason(diff),
         "",
+        *_ddim_devices_section(_bench(DIFFUSION_SPEED_DEVICES), _bench(DIFFUSION_DEVICES_AB)),
         "## Scaling over devices and processes",
         "",
         "Training steps per second of each method's CVAE stage at a global batch of 64, on forced host devices and",

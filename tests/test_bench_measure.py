@@ -116,3 +116,20 @@ def test_settings_from_a_results_file_ignore_knobs_since_removed():
     assert s.k == 50 and s.sample_batches == (1, 64) and not hasattr(s, "encoder_backward")
     with pytest.raises(TypeError, match="encoder_backward"):  # the workers' settings come from this run: no unknown field
         harness.Settings.from_dict(rec)
+
+
+def test_the_jax_worker_alone_gets_the_host_devices_and_the_table_says_so():
+    from benchmarks import run
+
+    env = {"XLA_FLAGS": "--xla_backend_optimization_level=0", "PATH": "/bin"}
+    assert run.jax_env(env, harness.Settings()) is env  # one device: the environment as it is
+    two = run.jax_env(env, harness.Settings(jax_host_devices=2))
+    assert two["XLA_FLAGS"] == "--xla_backend_optimization_level=0 --xla_force_host_platform_device_count=2"
+    assert env["XLA_FLAGS"] == "--xla_backend_optimization_level=0" and two["PATH"] == "/bin"  # the others' unchanged
+    row = {"case": "diffusion/sample_ddim/b1/k50/t60/s100", "kind": "sample_ddim", "steps": 100, "batch": 1, "k": 50,
+           "jax": {"median_s": 0.3, "p25_s": 0.3, "p75_s": 0.3}}
+    text = "\n".join(run._ddim_table([row], harness.Settings(jax_host_devices=2), None))
+    assert "split over 2 CPU host devices" in text and "25 on each" in text
+    assert "host devices" not in "\n".join(run._ddim_table([row], harness.Settings(), None))
+    with pytest.raises(SystemExit):  # K = 50 does not split over 3
+        run.main(["--jax-host-devices", "3", "--models", "diffusion"])

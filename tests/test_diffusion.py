@@ -2,6 +2,10 @@
 
 import functools
 import json
+import os
+import subprocess
+import sys
+import textwrap
 
 import jax
 import jax.numpy as jnp
@@ -249,6 +253,46 @@ def test_k_chunk_must_divide_k():
     with pytest.raises(ValueError, match="k_chunk"):
         d.sample(model, init(model), windows(0, 1)[:, :T_HIS], jax.random.key(0), 5, t_pred=T_PRED,
                  abar=d.schedule("cosine", 100), sampling_steps=10, k_chunk=2)
+
+
+def test_k_split_over_devices_gives_the_same_futures():
+    # Two forced CPU host devices need a process of their own (this one has started jax with one).
+    # Each device runs its share of K (cond_keep < 1: the per-sample condition draws move with it);
+    # sample k keeps its key, so the futures equal the one-device sampler's and the readable one's.
+    code = textwrap.dedent("""
+        import sys
+        import jax, numpy as np
+        sys.path.insert(0, %r)
+        from test_diffusion import tiny, init, windows, T_HIS, T_PRED
+        from jaxmotion.models import diffusion as d
+        assert jax.device_count() == 2, jax.devices()
+        model = tiny(n_dct=6)
+        p = init(model, 6)
+        obs = windows(4, 3)[:, :T_HIS]
+        args = dict(t_pred=T_PRED, abar=d.schedule("cosine", 1000), sampling_steps=10, cond_keep=0.5)
+        two = jax.jit(lambda p, o, key: d.sample(model, p, o, key, 6, devices=jax.devices(), **args))(p, obs, jax.random.key(9))
+        one = d.sample(model, p, obs, jax.random.key(9), 6, **args)
+        ref = d.sample_reference(model, p, obs, jax.random.key(9), 6, **args)
+        assert two.shape == (3, 6, T_PRED, 6), two.shape
+        tol = 1e-5 * float(np.abs(ref).max())
+        np.testing.assert_allclose(two, one, rtol=1e-5, atol=tol)
+        np.testing.assert_allclose(two, ref, rtol=1e-5, atol=tol)
+        assert len(two.sharding.device_set) == 2, two.sharding
+    """ % os.path.dirname(__file__))
+    flags = f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count=2".strip()
+    env = dict(os.environ, JAX_PLATFORMS="cpu", XLA_FLAGS=flags)
+    proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-4000:]
+
+
+def test_k_over_devices_must_split_evenly():
+    model = tiny()
+    args = dict(t_pred=T_PRED, abar=d.schedule("cosine", 100), sampling_steps=10, devices=[jax.devices()[0]] * 2)
+    obs = windows(0, 1)[:, :T_HIS]
+    with pytest.raises(ValueError, match=r"K \(5\) must be a multiple of the number of devices \(2\)"):
+        d.sample(model, init(model), obs, jax.random.key(0), 5, **args)
+    with pytest.raises(ValueError, match=r"k_chunk \(2\) must divide each device's share of K \(6 / 2 devices = 3\)"):
+        d.sample(model, init(model), obs, jax.random.key(0), 6, k_chunk=2, **args)
 
 
 def test_test_cond_keep_draws_conditioned_and_unconditioned_samples():

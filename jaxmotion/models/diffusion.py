@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import flax.linen as nn
@@ -423,7 +424,8 @@ CHUNK_ROWS = 10_000
 
 def sample(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.Array, k: int, *, t_pred: int,
            abar: Float[Array, " T"], sampling_steps: int, complete_frames: int | None = None,
-           cond_keep: float = 1.0, k_chunk: int | None = None) -> Float[Array, "b k t_pred d"]:
+           cond_keep: float = 1.0, k_chunk: int | None = None,
+           devices: Sequence[jax.Device] | None = None) -> Float[Array, "b k t_pred d"]:
     """Returns K futures per window: DDIM (sigma = 0) with DCT completion, one `lax.scan` over the steps.
 
     The futures of `sample_reference` (`ddim_sample` of the Flax denoiser vmapped over K; tested equal
@@ -451,11 +453,39 @@ def sample(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.A
         cond_keep: the probability that a sample is conditioned on `x` (1: always).
         k_chunk: the K samples run this many at a time (a divisor of K), each chunk its own scan over
             the steps, so a large batch's activations stay in cache; the futures are the same. None:
-            the largest divisor of K whose chunk holds at most `CHUNK_ROWS` coefficient rows.
+            the largest divisor of K whose chunk holds at most `CHUNK_ROWS` coefficient rows. With
+            `devices`, a divisor of each device's share of K.
+        devices: split the K samples evenly over these devices (`jax.shard_map`), each device running
+            its share's scan at the same time; the futures are the same (sample k keeps its key). None:
+            one device. On a CPU, `XLA_FLAGS=--xla_force_host_platform_device_count=N` (set before jax
+            starts) gives N host devices: each runs its own stream of XLA operations, which uses the
+            cores that one stream of small operations leaves idle (Benchmarks page, "Diffusion sampling").
 
     Returns:
         `(b, K, t_pred, D)` futures.
     """
+    keys = jax.random.split(key, k)
+    kw = dict(t_pred=t_pred, abar=abar, sampling_steps=sampling_steps, complete_frames=complete_frames,
+              cond_keep=cond_keep, k_chunk=k_chunk)
+    if devices is None or len(devices) == 1:
+        return _sample_keys(model, params, x, keys, **kw)
+    nd = len(devices)
+    if k % nd:
+        raise ValueError(f"sample: K ({k}) must be a multiple of the number of devices ({nd})")
+    if k_chunk is not None and (k // nd) % k_chunk:
+        raise ValueError(f"sample: k_chunk ({k_chunk}) must divide each device's share of K ({k} / {nd} devices = {k // nd})")
+    mesh = jax.sharding.Mesh(np.asarray(devices), ("k",))
+    spec = jax.sharding.PartitionSpec
+    shard = jax.shard_map(lambda p, xx, kk: _sample_keys(model, p, xx, kk, **kw), mesh=mesh,
+                          in_specs=(spec(), spec(), spec("k")), out_specs=spec(None, "k"))
+    return shard(params, jnp.asarray(x), keys)
+
+
+def _sample_keys(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], keys: jax.Array, *, t_pred: int,
+                 abar: Float[Array, " T"], sampling_steps: int, complete_frames: int | None, cond_keep: float,
+                 k_chunk: int | None) -> Float[Array, "b k t_pred d"]:
+    """Returns `sample`'s futures for the samples of `keys` (`(K,)`, sample k's own key)."""
+    k = keys.shape[0]
     x = jnp.asarray(x)
     b, t_his, d = x.shape
     t_total = t_his + t_pred
@@ -489,7 +519,6 @@ def sample(model: Denoiser, params, x: Float[ArrayLike, "b t_his d"], key: jax.A
     free_mat = (dmat * (1.0 - m)) @ dmat.T  # C (1 - M) C^T
     known = jnp.einsum("ij,bjd->ibd", keep_mat, cond)[:, None]  # C M C^T cond, (n, 1, b, d)
 
-    keys = jax.random.split(key, k)
     if cond_keep < 1.0:
         split3 = jax.vmap(lambda kk: jax.random.split(kk, 3))(keys)
         k0, k1, k2 = split3[:, 0], split3[:, 1], split3[:, 2]
