@@ -128,12 +128,15 @@ def source_tree(rev: str, into: Path) -> Path:
     return into / "src"
 
 
-def run_worker(src: Path, config: str, data: str | None, repeats: int, stages: str, out: Path) -> dict:
-    """Returns `measure_config`'s record from a fresh process that imports `jaxmotion` from `src`."""
+def run_worker(src: Path, config: str, data: str | None, repeats: int, stages: str, out: Path, host_devices: int = 1) -> dict:
+    """Returns `measure_config`'s record from a fresh process that imports `jaxmotion` from `src`, on `host_devices`
+    CPU host devices (`jaxmotion run --host-devices`: the step data-parallel over them)."""
     cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", "--src", str(src), "--configs", config,
            "--repeats", str(repeats), "--out", str(out)] + (["--data", data] if data else []) + (["--stages", stages] if stages else [])
     # The memory pages the `jaxmotion` command trains with (train/hugepages.py), in both trees.
     env = dict(os.environ, PYTHONPATH=str(src), GLIBC_TUNABLES="glibc.malloc.hugetlb=1")
+    if host_devices > 1:
+        env["XLA_FLAGS"] = f"{env.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={host_devices}".strip()
     r = subprocess.run(cmd, env=env, cwd=str(src))
     if r.returncode != 0:
         return {"config_file": config, "error": f"worker exited with {r.returncode}"}
@@ -159,6 +162,14 @@ def peak_gflops() -> float:
         subprocess.run([sys.executable, "-m", "benchmarks.peak", "--framework", "jax", "--out", str(out),
                         "--sizes", "1024,2048"], check=True, cwd=str(ROOT))
         return json.loads(out.read_text())["peak_gflops"]["float32"]
+
+
+def all_devices(rec: dict, n: int) -> dict:
+    """Returns a worker's record with every stage's FLOPs those of all its `n` devices (the jaxpr of a step written per
+    device, `jax.shard_map`, counts one device's share of the batch)."""
+    for s in rec.get("stages", []):
+        s["matmul_gflop"] *= n
+    return rec
 
 
 def annotate(rec: dict, peak: float) -> dict:
@@ -197,6 +208,22 @@ def table(doc: dict) -> str:
     return "\n".join(lines)
 
 
+def host_table(doc: dict) -> str:
+    """Returns the markdown table of one device against `doc["host_devices"]` host devices, stage by stage (same run)."""
+    n = doc["host_devices"]
+    host = {(r.get("config_file"), s["stage"]): s for r in doc.get("host", []) for s in r.get("stages", [])}
+    lines = [f"| config | stage | steps | batch | s / step, 1 device | s / step, {n} host devices | speed-up | hours, 1 device | "
+             f"hours, {n} host devices |", "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
+    for r in doc["new"]:
+        for s in r.get("stages", []):
+            h = host.get((r["config_file"], s["stage"]))
+            if h is None:
+                continue
+            lines.append(f"| {Path(r['config_file']).name} | {s['stage']} | {s['num_steps']} | {s['batch']} | {s['step_s']:.3f} | "
+                         f"{h['step_s']:.3f} | {s['step_s'] / h['step_s']:.2f}x | {s['hours']:.1f} | {h['hours']:.1f} |")
+    return "\n".join(lines)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--configs", required=True, help="config files, comma-separated")
@@ -207,10 +234,14 @@ def main(argv=None) -> int:
     ap.add_argument("--base", default=None, help="also measure git revision BASE's source, side by side")
     ap.add_argument("--rev", default=None, help="measure git revision REV's source instead of this checkout's")
     ap.add_argument("--base-label", default=None, help="how the table names the base (default: BASE)")
+    ap.add_argument("--host-devices", type=int, default=1, metavar="N",
+                    help="also measure every config on N CPU host devices (jaxmotion run --host-devices N), alternating")
     ap.add_argument("--out", type=Path, default=None)
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--src", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.host_devices < 1:
+        ap.error(f"--host-devices: expected a count >= 1, got {args.host_devices}")
     configs = [str(Path(c).resolve()) for c in args.configs.split(",") if c]
     data = str(Path(args.data).expanduser()) if args.data else None
     if args.worker:
@@ -227,26 +258,31 @@ def main(argv=None) -> int:
     shown = ["BASE" if args.base and a == args.base else a.replace(str(Path.home()), "~") for a in argv]
     shown = [shlex.quote(a) if " " in a else a for a in shown]  # a label with spaces, quoted as it was typed
     doc = {"machine": m, "peak_gflops": peak, "base_rev": args.base, "rev": args.rev, "base_label": args.base_label or "BASE",
-           "new": [], "base": [], "command": "python benchmarks/repro_cost.py " + " ".join(shown)}
+           "new": [], "base": [], "host": [], "host_devices": args.host_devices,
+           "command": "python benchmarks/repro_cost.py " + " ".join(shown)}
     with tempfile.TemporaryDirectory() as d:
         base_src = source_tree(args.base, Path(d)) if args.base else None
         # --rev: the source of that revision alone in the "new" columns (a config that needs it).
         new_src = source_tree(args.rev, Path(d) / "rev") if args.rev else ROOT
-        trees = [("new", new_src)] + ([("base", base_src)] if base_src is not None else [])
-        runs = {(name, c): [] for name, _ in trees for c in configs}
+        # (name, source, host devices): this checkout (or --rev) on one device, the base's, this one on N host devices.
+        trees = ([("new", new_src, 1)] + ([("base", base_src, 1)] if base_src is not None else [])
+                 + ([("host", new_src, args.host_devices)] if args.host_devices > 1 else []))
+        runs = {(name, c): [] for name, _, _ in trees for c in configs}
         # Rounds alternate the trees config by config, so a stretch of a slower machine (other jobs on a
         # shared CPU) falls on both; each stage keeps its fastest round.
         for r in range(args.rounds):
             for i, c in enumerate(configs):
-                for name, src in trees:
-                    runs[name, c].append(run_worker(src, c, data, args.repeats, args.stages, Path(d) / f"{name}{i}_{r}.json"))
+                for name, src, n in trees:
+                    runs[name, c].append(run_worker(src, c, data, args.repeats, args.stages, Path(d) / f"{name}{i}_{r}.json", n))
         # The peak again after the stages; the faster of the two (the less disturbed) is the machine's.
         peaks = [peak, peak_gflops()]
         doc["peak_gflops"] = peak = max(peaks)
         doc["peaks_gflops"] = peaks
-        for name, _ in trees:
-            doc[name] = [annotate(fastest(runs[name, c]), peak) for c in configs]
+        for name, _, n in trees:
+            doc[name] = [annotate(all_devices(fastest(runs[name, c]), n), peak) for c in configs]
     print(table(doc))
+    if doc["host"]:
+        print(host_table(doc))
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(json.dumps(doc, indent=1))

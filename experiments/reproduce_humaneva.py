@@ -62,10 +62,12 @@ def pending(runs: list[tuple[str, int]], results: Path) -> list[tuple[str, int]]
     return [(c, s) for c, s in runs if not (results / f"{c}_s{s}_metrics.json").is_file()]
 
 
-def command(config: str, seed: int, data: Path, workdir: Path, lock: Path | None) -> list[str]:
+def command(config: str, seed: int, data: Path, workdir: Path, lock: Path | None, host_devices: int | None = None) -> list[str]:
     """Returns the command that trains and evaluates one run (resuming when its folder exists)."""
     cmd = [sys.executable, "-m", "jaxmotion.cli", "run", "--config", str(ROOT / "experiments" / "configs" / f"{config}.py"),
            "--data", str(data), "--workdir", str(workdir), "--seed", str(seed)]
+    if host_devices is not None:
+        cmd += ["--host-devices", str(host_devices)]
     if workdir.is_dir() and any(workdir.iterdir()):
         cmd.append("--resume")
     return (["flock", str(lock)] if lock else []) + cmd
@@ -98,6 +100,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="these runs instead of the table's (default: RUNS)")
     ap.add_argument("--lock", type=Path, default=None, help="hold this file's lock (flock) around each run")
     ap.add_argument("--list", action="store_true", help="print the runs still to do and stop")
+    ap.add_argument("--host-devices", type=int, default=None, metavar="N",
+                    help="train each run on N CPU host devices (jaxmotion run --host-devices; the benchmarks page's "
+                         "cost table says which stages it speeds up)")
     args = ap.parse_args(argv)
     todo = pending(list(args.runs or RUNS), args.results)
     if args.list or not todo:
@@ -106,6 +111,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.data is None or not args.data.is_file():
         ap.error(f"--data: {args.data} is not a file (VideoPose3D's data_3d_humaneva15.npz)")
+    if args.host_devices is not None and args.host_devices < 1:
+        ap.error(f"--host-devices: expected a count >= 1, got {args.host_devices}")
     if args.lock and not shutil.which("flock"):
         ap.error("--lock needs the flock command (util-linux)")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
@@ -113,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
         workdir = args.runs_dir / f"{config}_s{seed}"
         log = args.runs_dir / f"{config}_s{seed}.out"
         if not (workdir / "metrics.json").is_file():
-            cmd = command(config, seed, args.data, workdir, args.lock)
+            cmd = command(config, seed, args.data, workdir, args.lock, args.host_devices)
             print(f"[{i}/{len(todo)}] {config} seed {seed}{' (resuming)' if '--resume' in cmd else ''}: progress in {log}",
                   flush=True)
             args.runs_dir.mkdir(parents=True, exist_ok=True)

@@ -53,6 +53,8 @@ def test_pending_skips_kept_runs_and_command_resumes(tmp_path):
     (work / "cvae").mkdir(parents=True)
     cmd = rh.command("dlow_humaneva", 1, tmp_path / "he.npz", work, tmp_path / "lock")
     assert cmd[:2] == ["flock", str(tmp_path / "lock")] and cmd[-1] == "--resume"
+    cmd = rh.command("dlow_humaneva", 1, tmp_path / "he.npz", work, None, host_devices=2)
+    assert cmd[cmd.index("--host-devices") + 1] == "2" and cmd[-1] == "--resume"
 
 
 def test_main_trains_in_order_collects_and_stops_at_a_failure(tmp_path, monkeypatch, capsys):

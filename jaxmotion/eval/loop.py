@@ -135,6 +135,7 @@ def evaluate(cfg: Config, method: Method, prep: Prepared, params: dict, workdir:
                 "config": {**to_dict(cfg), **fields},
                 "jax_version": jax.__version__,
                 "device": f"{jax.devices()[0].platform}:{jax.devices()[0].device_kind} ({platform.machine()})",
+                "devices": jax.device_count(),  # every process's (jaxmotion train --host-devices, jax.distributed)
                 "wall_s": round(time.perf_counter() - t0, 3),
                 "compile_s": round(compiling.seconds, 3),  # part of wall_s: tracing + XLA compilation
             }
