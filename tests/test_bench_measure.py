@@ -133,3 +133,18 @@ def test_the_jax_worker_alone_gets_the_host_devices_and_the_table_says_so():
     assert "host devices" not in "\n".join(run._ddim_table([row], harness.Settings(), None))
     with pytest.raises(SystemExit):  # K = 50 does not split over 3
         run.main(["--jax-host-devices", "3", "--models", "diffusion"])
+
+
+def test_repro_cost_counts_every_devices_flops_and_puts_host_devices_beside_one():
+    from benchmarks import repro_cost
+
+    stage = (lambda s, n: {"stage": "q", "num_steps": 3600, "batch": 32, "step_s": s, "matmul_gflop": 10.0 / n,
+                           "rounds_s": [s]})  # noqa: E731
+    one = {"config_file": "/x/dlow_humaneva.py", "config": "dlow_humaneva", "stages": [stage(0.8, 1)]}
+    two = repro_cost.all_devices({"config_file": "/x/dlow_humaneva.py", "config": "dlow_humaneva", "stages": [stage(0.5, 2)]}, 2)
+    assert two["stages"][0]["matmul_gflop"] == 10.0  # the per-device jaxpr's share, times the devices
+    doc = {"host_devices": 2, "new": [repro_cost.annotate(one, 100.0)], "host": [repro_cost.annotate(two, 100.0)]}
+    assert doc["host"][0]["stages"][0]["pct_peak"] == pytest.approx(20.0)
+    rows = repro_cost.host_table(doc).splitlines()
+    assert "2 host devices" in rows[0] and len(rows) == 3
+    assert rows[2] == "| dlow_humaneva.py | q | 3600 | 32 | 0.800 | 0.500 | 1.60x | 0.8 | 0.5 |"
