@@ -101,8 +101,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--lock", type=Path, default=None, help="hold this file's lock (flock) around each run")
     ap.add_argument("--list", action="store_true", help="print the runs still to do and stop")
     ap.add_argument("--host-devices", type=int, default=None, metavar="N",
-                    help="train each run on N CPU host devices (jaxmotion run --host-devices; the benchmarks page's "
+                    help="train runs on N CPU host devices (jaxmotion run --host-devices; the benchmarks page's "
                          "cost table says which stages it speeds up)")
+    ap.add_argument("--host-devices-configs", nargs="+", default=None, metavar="CONFIG",
+                    help="only these configs' runs on --host-devices (default: every run)")
     args = ap.parse_args(argv)
     todo = pending(list(args.runs or RUNS), args.results)
     if args.list or not todo:
@@ -113,6 +115,9 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--data: {args.data} is not a file (VideoPose3D's data_3d_humaneva15.npz)")
     if args.host_devices is not None and args.host_devices < 1:
         ap.error(f"--host-devices: expected a count >= 1, got {args.host_devices}")
+    unknown = sorted(set(args.host_devices_configs or ()) - {c for c, _ in todo})
+    if unknown:
+        ap.error(f"--host-devices-configs: {', '.join(unknown)} not among the runs to do ({', '.join(dict.fromkeys(c for c, _ in todo))})")
     if args.lock and not shutil.which("flock"):
         ap.error("--lock needs the flock command (util-linux)")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
@@ -120,7 +125,8 @@ def main(argv: list[str] | None = None) -> int:
         workdir = args.runs_dir / f"{config}_s{seed}"
         log = args.runs_dir / f"{config}_s{seed}.out"
         if not (workdir / "metrics.json").is_file():
-            cmd = command(config, seed, args.data, workdir, args.lock, args.host_devices)
+            on_host = args.host_devices_configs is None or config in args.host_devices_configs
+            cmd = command(config, seed, args.data, workdir, args.lock, args.host_devices if on_host else None)
             print(f"[{i}/{len(todo)}] {config} seed {seed}{' (resuming)' if '--resume' in cmd else ''}: progress in {log}",
                   flush=True)
             args.runs_dir.mkdir(parents=True, exist_ok=True)

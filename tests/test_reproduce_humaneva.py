@@ -102,3 +102,26 @@ def test_list_and_missing_data(tmp_path, capsys):
     r = subprocess.run([sys.executable, str(ROOT / "experiments" / "reproduce_humaneva.py"), "--data", str(tmp_path / "no.npz"),
                         "--results", str(results), "--runs", "dlow_humaneva:0"], capture_output=True, text=True)
     assert r.returncode == 2 and "is not a file" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_host_devices_go_to_the_named_configs_runs_only(tmp_path, monkeypatch, capsys):
+    data, runs, results = tmp_path / "he.npz", tmp_path / "runs", tmp_path / "results"
+    data.write_bytes(b"x")
+    flags, real_run = {}, subprocess.run
+
+    def fake(cmd, **kw):
+        if "--workdir" not in cmd:
+            return real_run(cmd, **kw)
+        config = Path(cmd[cmd.index("--config") + 1]).stem
+        flags[config] = cmd[cmd.index("--host-devices") + 1] if "--host-devices" in cmd else None
+        _fake_run(Path(cmd[cmd.index("--workdir") + 1]), config, int(cmd[cmd.index("--seed") + 1]))
+        return subprocess.CompletedProcess(cmd, 0)
+
+    monkeypatch.setattr(rh.subprocess, "run", fake)
+    argv = ["--data", str(data), "--runs-dir", str(runs), "--results", str(results), "--runs", "dlow_humaneva:1",
+            "mojo_vae_dct5_humaneva:0", "--host-devices", "2"]
+    with pytest.raises(SystemExit):
+        rh.main(argv + ["--host-devices-configs", "gsps_humaneva"])
+    assert "--host-devices-configs: gsps_humaneva not among the runs to do" in capsys.readouterr().err
+    assert rh.main(argv + ["--host-devices-configs", "mojo_vae_dct5_humaneva"]) == 0
+    assert flags == {"dlow_humaneva": None, "mojo_vae_dct5_humaneva": "2"}
