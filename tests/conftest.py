@@ -69,3 +69,20 @@ def tiny_cli_run(tmp_path_factory):
     cfg.write_text(TINY)
     assert main(["run", "--config", str(cfg), "--workdir", str(d / "work")]) == 0
     return cfg, d / "work"
+
+
+def kill_at_step(monkeypatch, step: int):
+    """Makes a training run die during `step` (`TrainSampler.sample`'s call of that step raises KeyboardInterrupt, as
+    a kill would stop it); returns the function that puts the sampler back."""
+    from jaxmotion.data.windows import TrainSampler
+
+    real, calls = TrainSampler.sample, {"n": 0}
+
+    def dies(self, rng, batch_size):
+        calls["n"] += 1
+        if calls["n"] == step:
+            raise KeyboardInterrupt("killed")
+        return real(self, rng, batch_size)
+
+    monkeypatch.setattr(TrainSampler, "sample", dies)
+    return lambda: monkeypatch.setattr(TrainSampler, "sample", real)

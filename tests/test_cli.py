@@ -11,8 +11,9 @@ import pytest
 from jaxmotion import experiment
 from jaxmotion.cli import main
 from jaxmotion.config import Config, load_config
-from jaxmotion.data.windows import TrainSampler
 from jaxmotion.train.runner import CheckpointMismatch
+
+from conftest import kill_at_step
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -77,19 +78,11 @@ def test_killed_run_resumes_to_the_uninterrupted_parameters(run_dir, tmp_path, m
     cfg, work = run_dir
     with pytest.raises(FileExistsError, match="--resume"):
         main(["train", "--config", str(cfg), "--workdir", str(work)])
-    # Kill a second run during CVAE step 25 (checkpoints every 10 steps), then resume it.
-    real, calls = TrainSampler.sample, {"n": 0}
-
-    def dies_at_step_25(self, rng, batch_size):
-        calls["n"] += 1
-        if calls["n"] == 26:
-            raise KeyboardInterrupt("killed")
-        return real(self, rng, batch_size)
-
-    monkeypatch.setattr(TrainSampler, "sample", dies_at_step_25)
+    # Kill a second run during CVAE step 25 (checkpoints every 10 steps; the sampler's 26th call), then resume it.
+    restore = kill_at_step(monkeypatch, 26)
     with pytest.raises(KeyboardInterrupt):
         main(["train", "--config", str(cfg), "--workdir", str(tmp_path / "killed")])
-    monkeypatch.setattr(TrainSampler, "sample", real)
+    restore()
     assert not (tmp_path / "killed" / "dlow_k6").exists()
     assert main(["train", "--config", str(cfg), "--workdir", str(tmp_path / "killed"), "--resume"]) == 0
     _assert_trees_equal(_params(cfg, tmp_path / "killed"), _params(cfg, work))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 
@@ -12,9 +13,9 @@ import numpy as np
 import pytest
 
 from jaxmotion.cli import HOST_DEVICES_FLAG, main
-from jaxmotion.data.windows import TrainSampler
 from jaxmotion.errors import UsageError
 
+from conftest import kill_at_step
 from test_cli import _params
 
 
@@ -53,20 +54,13 @@ def test_a_one_device_checkpoint_resumes_on_two_host_devices(tmp_path, monkeypat
     and its metrics record 2 devices (that N devices train as one: tests/test_data_parallel_step.py)."""
     cfg, work = tmp_path / "tiny.py", tmp_path / "run"
     cfg.write_text(TINY)
-    real, calls = TrainSampler.sample, {"n": 0}
-
-    def dies_at_step_13(self, rng, batch_size):
-        calls["n"] += 1
-        if calls["n"] == 13:
-            raise KeyboardInterrupt("killed")
-        return real(self, rng, batch_size)
-
-    monkeypatch.setattr(TrainSampler, "sample", dies_at_step_13)
+    restore = kill_at_step(monkeypatch, 13)
     with pytest.raises(KeyboardInterrupt):
         main(["train", "--config", str(cfg), "--workdir", str(work)])
-    monkeypatch.setattr(TrainSampler, "sample", real)
+    restore()
     assert max(int(p.name) for p in (work / "cvae" / "ckpt").iterdir() if p.name.isdigit()) == 10
-    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    # The test session's XLA flags (tests/conftest.py) without any host device count of their own.
+    env = dict(os.environ, XLA_FLAGS=re.sub(HOST_DEVICES_FLAG + r"=\d+", "", os.environ.get("XLA_FLAGS", "")).strip())
     p = subprocess.run([sys.executable, "-m", "jaxmotion.cli", "run", "--config", str(cfg), "--workdir", str(work),
                         "--resume", "--host-devices", "2"], env=dict(env, JAX_PLATFORMS="cpu"), capture_output=True, text=True,
                        timeout=600)
