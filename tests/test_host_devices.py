@@ -29,9 +29,9 @@ def test_a_bad_count_or_a_clash_with_xla_flags_is_a_clear_error(tmp_path, monkey
 
 
 def test_a_backend_started_with_other_devices_is_a_clear_error(monkeypatch):
-    # This process's CPU backend has started (one device): the flag can no longer take effect.
-    monkeypatch.setenv("XLA_FLAGS", "")
+    # This process's CPU backend has started (one device, with the test session's flags): the flag can no longer take effect.
     assert len(jax.local_devices()) == 1
+    monkeypatch.setenv("XLA_FLAGS", "")
     with pytest.raises(UsageError, match="had already started with 1 device"):
         main(["train", "--host-devices", "2"])
     assert os.environ["XLA_FLAGS"] == f"{HOST_DEVICES_FLAG}=2"  # set for a process that has not started jax

@@ -229,8 +229,10 @@ def _flip_64_bytes(step_dir: Path) -> None:
 
 
 # Flipped bits in a float's mantissa change it; in its exponent they may make it NaN or inf; in a
-# compressed chunk's framing they make TensorStore's read fail.
-_CORRUPT = "its arrays restore to other bytes than were saved|it restores non-finite values|Exception: Encountered error while reading"
+# compressed chunk's framing they make TensorStore's read fail ("Encountered error while reading", or
+# "FAILED_PRECONDITION: Error reading" where the chunk's decompression fails).
+_CORRUPT = ("its arrays restore to other bytes than were saved|it restores non-finite values|Exception: Encountered error while reading"
+            "|FAILED_PRECONDITION: Error reading")
 
 
 @pytest.fixture
