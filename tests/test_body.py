@@ -247,13 +247,17 @@ def test_analytic_marker_jacobian_equals_autodiff():
         offsets=jax.random.normal(k[10], body.offsets.shape), ref_rot=jax.random.normal(k[11], body.ref_rot.shape),
         marker_offsets=jax.random.normal(k[9], body.marker_offsets.shape),
     )  # fmt: skip
+    # Each derivative compiled once (jit): run op by op, the Jacobians took most of this test's time.
+    jvp1 = jax.jit(lambda tb_: jax.jvp(lambda b, q: b.markers(q), (body, p), (tb_, tp)))
+    jvp2 = jax.jit(lambda tb_: jax.jvp(lambda b, q: b.markers_autodiff(q), (body, p), (tb_, tp)))
     for tangent_body in (tb, jax.tree.map(jnp.zeros_like, tb)):
-        y1, t1 = jax.jvp(lambda b, q: b.markers(q), (body, p), (tangent_body, tp))
-        y2, t2 = jax.jvp(lambda b, q: b.markers_autodiff(q), (body, p), (tangent_body, tp))
+        (y1, t1), (y2, t2) = jvp1(tangent_body), jvp2(tangent_body)
         np.testing.assert_array_equal(y1, y2)
         np.testing.assert_allclose(t1, t2, atol=2e-5 * float(jnp.abs(t2).max()))
+    f1 = lambda q: body.markers(p._replace(pose=q))  # noqa: E731
+    f2 = lambda q: body.markers_autodiff(p._replace(pose=q))  # noqa: E731
+    jacs = [jax.jit(d(f)) for d in (jax.jacfwd, jax.jacrev) for f in (f1, f2)]
     for pose in (p.pose, jnp.zeros_like(p.pose)):  # the small-angle branch of J_r at zero
-        f1 = lambda q: body.markers(p._replace(pose=q))  # noqa: E731
-        f2 = lambda q: body.markers_autodiff(p._replace(pose=q))  # noqa: E731
-        np.testing.assert_allclose(jax.jacfwd(f1)(pose), jax.jacfwd(f2)(pose), atol=1e-5)
-        np.testing.assert_allclose(jax.jacrev(f1)(pose), jax.jacrev(f2)(pose), atol=1e-5)
+        fwd1, fwd2, rev1, rev2 = (j(pose) for j in jacs)
+        np.testing.assert_allclose(fwd1, fwd2, atol=1e-5)
+        np.testing.assert_allclose(rev1, rev2, atol=1e-5)

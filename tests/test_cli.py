@@ -53,7 +53,7 @@ def test_run_writes_protocol_records_and_picture(run_dir):
     for r in records:
         # protocol §6 (docs/pages/protocol.md#reporting) fields.
         assert set(r) >= {"dataset", "method", "K", "n_windows", "metrics", "seed", "config", "jax_version", "device", "wall_s"}
-        assert r["n_windows"] == 40
+        assert r["n_windows"] == 40 and r["devices"] == 1
         assert set(r["metrics"]) >= {"APD", "ADE", "FDE", "MMADE", "MMFDE", "ADE-m", "FDE-m", "mode_recall"}
         assert all(np.isfinite(v) for v in r["metrics"].values() if isinstance(v, float))
         assert r["config"]["method_config_type"] == "jaxmotion.models.dlow.DLowConfig"

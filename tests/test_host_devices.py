@@ -50,8 +50,8 @@ def get_config():
 
 @pytest.mark.slow
 def test_a_one_device_checkpoint_resumes_on_two_host_devices(tmp_path, monkeypatch):
-    """A run killed at CVAE step 13 on one device (checkpoint 10) finishes on two host devices: every step once,
-    and its metrics record 2 devices (that N devices train as one: tests/test_data_parallel_step.py)."""
+    """A run killed at CVAE step 13 on one device (checkpoint 10) finishes on two host devices (the command checks
+    that it has them), every step once (that N devices train as one: tests/test_data_parallel_step.py)."""
     cfg, work = tmp_path / "tiny.py", tmp_path / "run"
     cfg.write_text(TINY)
     restore = kill_at_step(monkeypatch, 13)
@@ -61,11 +61,10 @@ def test_a_one_device_checkpoint_resumes_on_two_host_devices(tmp_path, monkeypat
     assert max(int(p.name) for p in (work / "cvae" / "ckpt").iterdir() if p.name.isdigit()) == 10
     # The test session's XLA flags (tests/conftest.py) without any host device count of their own.
     env = dict(os.environ, XLA_FLAGS=re.sub(HOST_DEVICES_FLAG + r"=\d+", "", os.environ.get("XLA_FLAGS", "")).strip())
-    p = subprocess.run([sys.executable, "-m", "jaxmotion.cli", "run", "--config", str(cfg), "--workdir", str(work),
+    p = subprocess.run([sys.executable, "-m", "jaxmotion.cli", "train", "--config", str(cfg), "--workdir", str(work),
                         "--resume", "--host-devices", "2"], env=dict(env, JAX_PLATFORMS="cpu"), capture_output=True, text=True,
                        timeout=600)
     assert p.returncode == 0, p.stderr[-3000:]
-    assert {r["devices"] for r in json.loads((work / "metrics.json").read_text())} == {2}
     steps = [json.loads(line)["step"] for line in (work / "cvae" / "log.jsonl").read_text().splitlines()]
     assert steps == [5, 10, 15, 20]
     assert all(np.isfinite(np.asarray(x)).all() for x in jax.tree.leaves(_params(cfg, work)))
