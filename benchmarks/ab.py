@@ -97,8 +97,9 @@ def main(argv=None):
     args.cases = args.cases or list(DEFAULT_CASES[args.ab])
     args.out = args.out or ROOT / "benchmarks" / "results" / f"{args.ab}_ab.json"
     if args.ab == "jax_host_devices":  # the process needs the host devices before jax starts
-        flags = os.environ.get("XLA_FLAGS", "")
-        os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={max(values)}".strip()
+        from jaxmotion.train.host_devices import host_device_flags
+
+        os.environ["XLA_FLAGS"] = host_device_flags(os.environ.get("XLA_FLAGS", ""), max(values))
     import jax
 
     from benchmarks.jax_bench import Builders

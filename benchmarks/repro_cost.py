@@ -136,7 +136,9 @@ def run_worker(src: Path, config: str, data: str | None, repeats: int, stages: s
     # The memory pages the `jaxmotion` command trains with (train/hugepages.py), in both trees.
     env = dict(os.environ, PYTHONPATH=str(src), GLIBC_TUNABLES="glibc.malloc.hugetlb=1")
     if host_devices > 1:
-        env["XLA_FLAGS"] = f"{env.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={host_devices}".strip()
+        from jaxmotion.train.host_devices import host_device_env
+
+        env = host_device_env(env, host_devices)
     r = subprocess.run(cmd, env=env, cwd=str(src))
     if r.returncode != 0:
         return {"config_file": config, "error": f"worker exited with {r.returncode}"}

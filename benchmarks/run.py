@@ -59,10 +59,9 @@ def worker_env(huge: bool) -> dict:
 
 def jax_env(env: dict, settings: Settings) -> dict:
     """Returns the jax worker's environment: `env` with `settings.jax_host_devices` CPU host devices forced."""
-    if settings.jax_host_devices <= 1:
-        return env
-    flags = f"{env.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={settings.jax_host_devices}".strip()
-    return dict(env, XLA_FLAGS=flags)
+    from jaxmotion.train.host_devices import host_device_env
+
+    return env if settings.jax_host_devices <= 1 else host_device_env(env, settings.jax_host_devices)
 
 
 def run_worker(name: str, settings: Settings, extra: list[str], env: dict) -> dict:

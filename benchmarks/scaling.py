@@ -55,7 +55,9 @@ def _free_port() -> int:
 def _env(platform_: str, devices: int, process: int, processes: int) -> dict:
     env = dict(os.environ, JAX_PLATFORMS="cpu" if platform_ == "cpu" else "cuda")
     if platform_ == "cpu":
-        env["XLA_FLAGS"] = f"{env.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={devices}".strip()
+        from jaxmotion.train.host_devices import host_device_env
+
+        env = host_device_env(env, devices)
     elif processes > 1:  # one GPU per process
         env["CUDA_VISIBLE_DEVICES"] = str(process)
     else:

@@ -220,14 +220,18 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "eval" and args.model is not None:
         return _eval_model(args)
     host_devices = getattr(args, "host_devices", None)
-    if host_devices is not None:
-        _force_host_devices(host_devices)
+    if host_devices is not None:  # before anything runs on a device: XLA reads the flag as jax's backend starts
+        from jaxmotion.train.host_devices import force_host_devices
+
+        force_host_devices(host_devices)
     from jaxmotion.train import distributed
 
     if args.command in ("run", "train", "eval"):  # before anything runs on a device
         distributed.initialize(args.coordinator_address, args.num_processes, args.process_id, auto=args.distributed)
     if host_devices is not None:
-        _check_host_devices(host_devices)
+        from jaxmotion.train.host_devices import check_host_devices
+
+        check_host_devices(host_devices)
     from jaxmotion.config import load_config
 
     cfg = load_config(args.config)
@@ -242,40 +246,6 @@ def main(argv: list[str] | None = None) -> int:
     # One process at a time in a run folder (process 0 of a distributed job holds it for all).
     with run_lock(workdir, args.command) if distributed.is_main() else contextlib.nullcontext():
         return _run(args, cfg, workdir, part_control, source)
-
-
-HOST_DEVICES_FLAG = "--xla_force_host_platform_device_count"
-
-
-def _force_host_devices(n: int) -> None:
-    """Gives this process `n` CPU host devices (`--host-devices`): XLA reads the flag when jax's CPU backend starts,
-    so this runs before anything uses a device; `_check_host_devices` then checks that it took effect.
-
-    Raises `UsageError` when `XLA_FLAGS` already sets another count.
-    """
-    import os
-    import re
-
-    flags = os.environ.get("XLA_FLAGS", "")
-    given = re.findall(HOST_DEVICES_FLAG + r"=(\d+)", flags)
-    if given and int(given[-1]) != n:
-        raise UsageError(f"--host-devices {n}: XLA_FLAGS already sets {HOST_DEVICES_FLAG}={given[-1]}; give one of them")
-    if not given:
-        os.environ["XLA_FLAGS"] = f"{flags} {HOST_DEVICES_FLAG}={n}".strip()
-
-
-def _check_host_devices(n: int) -> None:
-    """Raises `UsageError` where `--host-devices n` did not take effect (see `_force_host_devices`)."""
-    import jax
-
-    devices = jax.local_devices()  # the backend starts here (after jax.distributed, where a job has several processes)
-    if devices[0].platform != "cpu":
-        raise UsageError(f"--host-devices splits steps over CPU host devices; jax runs on {devices[0].platform} here "
-                         f"({len(devices)} devices, all used already)")
-    if len(devices) != n:
-        raise UsageError(f"--host-devices {n}: jax's CPU backend had already started with {len(devices)} device(s) in "
-                         f"this process; run the command in a new process, or set XLA_FLAGS={HOST_DEVICES_FLAG}={n} "
-                         f"before jax starts")
 
 
 def _with_overrides(cfg, args, source: str):

@@ -113,8 +113,9 @@ def test_per_device_moments_normalise_each_devices_rows_with_one_all_reduce_per_
     import subprocess
     import sys
 
-    flags = f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count=2".strip()  # keeps the session's flags
-    env = dict(os.environ, XLA_FLAGS=flags, JAX_PLATFORMS="cpu")
+    from jaxmotion.train.host_devices import host_device_env
+
+    env = dict(host_device_env(os.environ, 2), JAX_PLATFORMS="cpu")  # keeps the session's flags
     out = tmp_path / "out.json"
     subprocess.run([sys.executable, "-c", _PER_DEVICE_WORKER, str(out)], env=env, check=True, timeout=300)
     import json

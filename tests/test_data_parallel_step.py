@@ -173,8 +173,9 @@ def _worker_steps(out: Path) -> None:
 
 def _run(mode: str, out: Path, cache: Path | None = None) -> None:
     # Keeps the flags the test session set (tests/conftest.py: XLA's cheapest backend optimisation level).
-    flags = f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={DEVICES}".strip()
-    env = dict(os.environ, JAX_PLATFORMS="cpu", XLA_FLAGS=flags)
+    from jaxmotion.train.host_devices import host_device_env
+
+    env = dict(host_device_env(os.environ, DEVICES), JAX_PLATFORMS="cpu")
     if cache is not None:  # most of the steps' worker is compiling; launches share a persistent cache
         env.update(JAX_COMPILATION_CACHE_DIR=str(cache), JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS="0")
     p = subprocess.run([sys.executable, __file__, mode, str(out)], env=env, capture_output=True, text=True, timeout=TIMEOUT)

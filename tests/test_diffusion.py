@@ -279,8 +279,9 @@ def test_k_split_over_devices_gives_the_same_futures():
         np.testing.assert_allclose(two, ref, rtol=1e-5, atol=tol)
         assert len(two.sharding.device_set) == 2, two.sharding
     """ % os.path.dirname(__file__))
-    flags = f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count=2".strip()
-    env = dict(os.environ, JAX_PLATFORMS="cpu", XLA_FLAGS=flags)
+    from jaxmotion.train.host_devices import host_device_env
+
+    env = dict(host_device_env(os.environ, 2), JAX_PLATFORMS="cpu")
     proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-4000:]
 

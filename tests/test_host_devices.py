@@ -12,8 +12,9 @@ import jax
 import numpy as np
 import pytest
 
-from jaxmotion.cli import HOST_DEVICES_FLAG, main
+from jaxmotion.cli import main
 from jaxmotion.errors import UsageError
+from jaxmotion.train.host_devices import HOST_DEVICES_FLAG
 
 from conftest import kill_at_step
 from test_cli import _params
