@@ -10,7 +10,8 @@ seeds before the longest runs; `--runs` names others, e.g. a diagnostic). A run 
 from its last checkpoint (`--resume`). When a run ends, its `metrics.json`, learning curve
 (`<config>_s<seed>_curve.json`) and picture (`<config>_s<seed>_curves.png`) are copied into `--results`,
 the files the Results page is generated from (`docs/generate.py`). Stop it at any time (Ctrl-C) and run
-the same command again to go on: the whole table is about 45 hours on a 2-core CPU (the Benchmarks page,
+the same command again to go on (`--list` prints the runs still to do and each started run's newest checkpoint
+per stage): the whole table is about 45 hours on a 2-core CPU (the Benchmarks page,
 "What reproduction costs").
 
 The runs use the library of the checkout this script is in: run it from a clone frozen at one commit, so
@@ -73,6 +74,21 @@ def command(config: str, seed: int, data: Path, workdir: Path, lock: Path | None
     return (["flock", str(lock)] if lock else []) + cmd
 
 
+def progress(workdir: Path) -> str:
+    """Returns how far a started run got: each stage's newest checkpoint against its steps, e.g. `cvae 7,500 / 7,500,
+    q_k50 8,000 / 15,500` (stages in training order: fewer upstream stages first), and whether it was evaluated."""
+    stages = []
+    for manifest in workdir.glob("*/stage.json"):
+        info = json.loads(manifest.read_text())
+        ckpt = manifest.parent / "ckpt"
+        steps = [int(p.name) for p in ckpt.iterdir() if p.name.isdigit()] if ckpt.is_dir() else []
+        stages.append((len(info.get("upstream", {})), manifest.parent.name, max(steps, default=0), info["num_steps"]))
+    parts = [f"{name} {done:,} / {total:,}" for _, name, done, total in sorted(stages)]
+    if (workdir / "metrics.json").is_file():
+        parts.append("evaluated")
+    return ", ".join(parts) or "no checkpoint yet"
+
+
 def collect(run: Path, results: Path) -> list[Path]:
     """Copies a finished run's metrics, learning curve and picture into `results`; returns the files written."""
     records = json.loads((run / "metrics.json").read_text())
@@ -99,7 +115,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--runs", nargs="+", type=parse_run, default=None, metavar="CONFIG:SEED",
                     help="these runs instead of the table's (default: RUNS)")
     ap.add_argument("--lock", type=Path, default=None, help="hold this file's lock (flock) around each run")
-    ap.add_argument("--list", action="store_true", help="print the runs still to do and stop")
+    ap.add_argument("--list", action="store_true",
+                    help="print the runs still to do (a started run: each stage's newest checkpoint) and stop")
     ap.add_argument("--host-devices", type=int, default=None, metavar="N",
                     help="train runs on N CPU host devices (jaxmotion run --host-devices; the benchmarks page's "
                          "cost table says which stages it speeds up)")
@@ -108,7 +125,8 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     todo = pending(list(args.runs or RUNS), args.results)
     if args.list or not todo:
-        print("\n".join(f"{c}:{s}" + (" (started)" if (args.runs_dir / f"{c}_s{s}").is_dir() else "") for c, s in todo)
+        print("\n".join(f"{c}:{s}" + (f" (started: {progress(d)})" if (d := args.runs_dir / f"{c}_s{s}").is_dir() else "")
+                        for c, s in todo)
               or f"every run has its metrics in {args.results}")
         return 0
     if args.data is None or not args.data.is_file():

@@ -104,6 +104,25 @@ def test_list_and_missing_data(tmp_path, capsys):
     assert r.returncode == 2 and "is not a file" in r.stderr and "Traceback" not in r.stderr
 
 
+def test_list_shows_how_far_a_started_run_got(tmp_path, capsys):
+    runs = tmp_path / "runs"
+    started = runs / "dlow_humaneva_s1"
+    for stage, upstream, total, ckpts in (("dlow_k50", {"cvae": 7500}, 15500, (500, 1000)), ("cvae", {}, 7500, (7000, 7500))):
+        (started / stage / "ckpt").mkdir(parents=True)
+        (started / stage / "stage.json").write_text(json.dumps({"stage": stage, "upstream": upstream, "num_steps": total}))
+        for step in ckpts:
+            (started / stage / "ckpt" / str(step)).mkdir()
+    (started / "dlow_k50" / "ckpt" / "1500.orbax-checkpoint-tmp").mkdir()  # a write a kill interrupted: not a checkpoint
+    (runs / "dlow_humaneva_s0").mkdir()
+    assert rh.main(["--results", str(tmp_path), "--runs-dir", str(runs), "--runs", "dlow_humaneva:0", "dlow_humaneva:1",
+                    "gsps_humaneva:0", "--list"]) == 0
+    assert capsys.readouterr().out.splitlines() == [
+        "dlow_humaneva:0 (started: no checkpoint yet)",
+        "dlow_humaneva:1 (started: cvae 7,500 / 7,500, dlow_k50 1,000 / 15,500)",
+        "gsps_humaneva:0",
+    ]
+
+
 def test_host_devices_go_to_the_named_configs_runs_only(tmp_path, monkeypatch, capsys):
     data, runs, results = tmp_path / "he.npz", tmp_path / "runs", tmp_path / "results"
     data.write_bytes(b"x")
