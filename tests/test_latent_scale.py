@@ -33,3 +33,28 @@ def test_scaled_prior_is_the_cvae_sampler_at_one_and_decodes_scaled_draws():
     half = ls.scaled_prior(model, params, K, 0.5)(x, key)
     np.testing.assert_allclose(np.asarray(half), np.asarray(decode_k(model, params, x, 0.5 * z)), rtol=1e-5, atol=1e-6)
     assert not np.allclose(np.asarray(half), np.asarray(want))
+
+
+def test_scaled_q_is_mojos_sampler_at_one_and_spreads_only_the_low_bands_about_their_mean():
+    from jaxmotion.models import mojo
+
+    ls = _module()
+    cfg = mojo.MojoConfig(nz=4, nh_rnn=8, nh_mlp=(8,), q_nh_rnn=8, q_nh_mlp=(8,), dlow_band_fraction=0.4)
+    model = mojo.cvae_model(cfg, D, T_PRED)
+    x = jnp.asarray(np.random.default_rng(0).normal(size=(B, T_HIS, D)), jnp.float32)
+    params = jax.jit(model.init)(jax.random.key(0), x, jnp.zeros((B, T_PRED, D)), jax.random.key(1))
+    q = mojo.q_model(cfg, T_PRED, K)
+    assert 0 < q.n_low < model.n_bands  # low bands from Q, the bands above from N(0, I)
+    q_params = jax.jit(q.init)(jax.random.key(2), x, jnp.zeros((B, q.n_low, 4)))
+    key = jax.random.key(5)
+    want = mojo.sample_mojo(model, params, q, q_params, x, key)
+    np.testing.assert_allclose(np.asarray(ls.scaled_q(model, params, q, q_params, 1.0)(x, key)), np.asarray(want),
+                               rtol=1e-5, atol=1e-6)
+    z, _, _ = mojo.q_latents(model, q, q_params, x, key)
+    z = np.asarray(z)
+    spread = z.copy()
+    mean = z[:, :, : q.n_low].mean(axis=1, keepdims=True)
+    spread[:, :, : q.n_low] = mean + 2.0 * (z[:, :, : q.n_low] - mean)
+    got = ls.scaled_q(model, params, q, q_params, 2.0)(x, key)
+    np.testing.assert_allclose(np.asarray(got), np.asarray(decode_k(model, params, x, jnp.asarray(spread))), rtol=1e-5, atol=1e-5)
+    assert not np.allclose(np.asarray(got), np.asarray(want))
