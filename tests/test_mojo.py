@@ -133,6 +133,15 @@ def test_bad_config_is_rejected_with_the_field_name():
         mojo.MojoConfig(latent="fft")
     with pytest.raises(ValueError, match="baselines"):
         mojo.MojoConfig(baselines=("dlow",))
+    with pytest.raises(ValueError, match="q_recon"):
+        mojo.MojoConfig(q_recon="l2")
+
+
+def test_q_reconstruction_norm_follows_the_objectives_release_unless_named():
+    # MOJO's release (train_MOJO_dlow.py) sums absolute errors, DLow's squared ones.
+    norm = lambda **kw: mojo.q_loss_weights(mojo.MojoConfig(**kw))["recon_norm"]  # noqa: E731
+    assert (norm(), norm(loss="dlow")) == ("l1", "sq")
+    assert (norm(q_recon="sq"), norm(loss="dlow", q_recon="l1")) == ("sq", "l1")
 
 
 # ---------------------------------------------------------------------------------------------

@@ -30,7 +30,9 @@ ADDED = {"dedupe_members": False, "k_protocol": "top_k", "micro_batches": 1, "sp
          # DivSamp's release CVAE options (off) and the settings they read; HumanMAC's lr steps and mod_test (off).
          "cvae_lambda_angle": 0.0, "cvae_pseudo_prob": 0.0, "angle_percentile": 0.1, "angle_margin": 0.05,
          "angle_bounds_frames": 20000, "mm_candidate_stride": 20, "mm_his_threshold": 0.05, "mm_pred_threshold": 0.1,
-         "lr_milestones": [], "lr_gamma": 0.9, "test_cond_keep": 1.0, "batch_norm": "global"}
+         "lr_milestones": [], "lr_gamma": 0.9, "test_cond_keep": 1.0, "batch_norm": "global",
+         # MOJO's second-stage reconstruction norm (None: the one of its CVAE objective's release).
+         "q_recon": None}
 # Set per run on the command line (`--data`, `--seed`), or what was evaluated rather than trained (`eval_k`).
 PER_RUN = {"dataset", "seed", "eval_k"}
 

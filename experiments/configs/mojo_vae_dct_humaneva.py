@@ -9,7 +9,9 @@ lambda_recon 2, K = 50) with MOJO's CVAE objective (its Eq. (1): L1 reconstructi
 velocities + Psi(KLD), the KLD an element mean; alpha 3 and beta 1 as in MOJO's AMASS release) and the
 VAE+DCT architecture of MOJO's appendix: the latent is nz = 16 numbers per DCT band of the 60
 predicted frames (MOJO release `amass_mojo_f9_nsamp50.yml`: nz 16), and for +L a DLow map on the lowest
-L bands (unshared heads on one trunk, the release's `freq_separate`), N(0, I) above.
+L bands (unshared heads on one trunk, the release's `freq_separate`), N(0, I) above. The second stage's
+best-of-K reconstruction term is MOJO's release's (`train_MOJO_dlow.py`: absolute errors summed; `q_recon`
+None follows the CVAE objective), where DLow's release squares the errors (`q_recon="sq"`).
 
 Why MOJO's objective and not DLow's (`variant(n, loss="dlow")`: squared error + 1000 x jump + 0.01 x Psi(KLD),
 the KLD summed per window, kept as `mojo_vae_dct_humaneva_dlow_loss.py`): the paper names the robust KLD

@@ -87,6 +87,10 @@ class MojoConfig:
     lambda_j: float = 25.0
     lambda_recon: float = 2.0
     lambda_kl: float = 1.0
+    # The second stage's best-of-K reconstruction term: "l1", min_k sum |y_k - Y| (MOJO's release,
+    # `train_MOJO_dlow.py`); "sq", min_k sum (y_k - Y)^2 (DLow's release); None: "l1" with MOJO's CVAE
+    # objective, "sq" with DLow's.
+    q_recon: str | None = None
     # Extra samplers evaluated beside the config's own ("mojo"): "zero_velocity", "mojo_prior", and
     # "mojo_proj" (MOJO with recursive projection; marker datasets with a body, `info["body"]`).
     baselines: tuple[str, ...] = ("zero_velocity", "mojo_prior")
@@ -98,6 +102,8 @@ class MojoConfig:
             raise ValueError(f"MojoConfig.latent must be 'dct' or 'vector', got {self.latent!r}")
         if self.loss not in ("mojo", "dlow"):
             raise ValueError(f"MojoConfig.loss must be 'mojo' or 'dlow', got {self.loss!r}")
+        if self.q_recon not in (None, "l1", "sq"):
+            raise ValueError(f"MojoConfig.q_recon must be 'l1', 'sq' or None (follows loss), got {self.q_recon!r}")
         if not 0.0 < self.dlow_band_fraction <= 1.0:
             raise ValueError(f"MojoConfig.dlow_band_fraction must be in (0, 1], got {self.dlow_band_fraction}")
         unknown = set(self.baselines) - {"zero_velocity", "mojo_prior", "mojo_proj"}
@@ -317,9 +323,11 @@ def q_loss(
 
 
 def q_loss_weights(cfg: MojoConfig) -> dict:
-    """Returns the keyword weights of `q_loss` that a `MojoConfig` sets (the reconstruction norm follows `cfg.loss`)."""
+    """Returns the keyword weights of `q_loss` that a `MojoConfig` sets (the reconstruction norm: `cfg.q_recon`, or
+    the one of `cfg.loss`'s release where it is None)."""
+    recon = cfg.q_recon or ("l1" if cfg.loss == "mojo" else "sq")
     return dict(
-        recon_norm="l1" if cfg.loss == "mojo" else "sq", d_scale=cfg.d_scale, lambda_j=cfg.lambda_j,
+        recon_norm=recon, d_scale=cfg.d_scale, lambda_j=cfg.lambda_j,
         lambda_recon=cfg.lambda_recon, lambda_kl=cfg.lambda_kl,
     )
 
