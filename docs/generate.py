@@ -463,6 +463,13 @@ HUMANEVA_WHY: dict[str, str] = {
                "against 0.97. Trained with MOJO's objective (its Eq. (1)), as the config says why; with DLow's objective "
                "(`humaneva/dlow_loss/`, two seeds) APD was 1.76, MMADE and MMFDE 10% and 20% lower, FDE 9% lower, and "
                "the robust KLD inert (`humaneva/kld/`)",
+    "VAE+DCT+5": "more accurate and less diverse than the paper's (one seed): APD 2.81 against 4.18, MMADE and MMFDE 4% and "
+                 "3% higher. At the paper's diversity it stays more accurate: its Q latents spread about their mean reach APD "
+                 "4.01 with ADE 0.219 and FDE 0.221, 6% and 9% below the paper's (`humaneva/latent_scale/`), so the paper's "
+                 "row is not a point on this model's diversity-accuracy curve. DLow's release's squared reconstruction term in "
+                 "the second stage instead of MOJO's release's absolute one (`humaneva/recon/`, the same CVAE, 2,000 of 15,500 "
+                 "steps) raised APD 17% (2.94 against 2.52 at step 2,000) and ADE and FDE 1-2%: not the gap. The same run's "
+                 "VAE+DCT figures are the VAE+DCT row's seed 0 to the digit (the same CVAE)",
 }
 
 
