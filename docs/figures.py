@@ -47,6 +47,30 @@ def apd_ade(points: list[tuple[str, float, float, float, float]], title: str) ->
         return _svg(fig)
 
 
+def paper_and_ours(rows: list[tuple[str, dict[str, float], dict[str, float] | None]], title: str) -> str:
+    """Each published row beside ours: `rows` are `(label, paper's metrics, ours or None)` with APD, ADE and FDE; the
+    paper's row is a hollow marker, ours a filled one of the same colour, an arrow from the paper's to ours."""
+    with plt.rc_context(STYLE):
+        fig, axes = plt.subplots(1, 2, figsize=(8.2, 3.6), sharey=True)
+        for i, (label, paper, ours) in enumerate(rows):
+            color = f"C{i % 10}"
+            for ax, err in zip(axes, ("ADE", "FDE")):
+                ax.scatter(paper[err], paper["APD"], s=40, facecolors="none", edgecolors=color, zorder=3,
+                           label=f"{label}, paper" if ax is axes[0] else None)
+                if ours is not None:
+                    ax.scatter(ours[err], ours["APD"], s=32, color=color, zorder=4,
+                               label=f"{label}, jaxmotion" if ax is axes[0] else None)
+                    ax.annotate("", xy=(ours[err], ours["APD"]), xytext=(paper[err], paper["APD"]),
+                                arrowprops=dict(arrowstyle="->", color=color, lw=0.9))
+        axes[0].set_xlabel("ADE (m), lower is better")
+        axes[1].set_xlabel("FDE (m), lower is better")
+        axes[0].set_ylabel("APD (m), higher is more diverse")
+        fig.suptitle(title, fontsize=9)
+        fig.tight_layout()
+        fig.legend(loc="upper center", ncol=4, fontsize=7, bbox_to_anchor=(0.5, 0.0))
+        return _svg(fig)
+
+
 def learning_curves(curves: list[tuple[str, list[dict]]]) -> str:
     """Validation ADE and MMADE against training steps, one panel per run: `curves` are `(label, points)`, each
     point `{"step", "ADE", "MMADE"}` (the run's last stage)."""

@@ -560,6 +560,18 @@ def humaneva_table() -> list[str]:
     return out
 
 
+def humaneva_points() -> list[tuple[str, dict[str, float], dict[str, float] | None]]:
+    """Returns `(label, the paper's metrics, ours or None)` per published HumanEva-I row (MOJO's run of DLow left out:
+    DLow's own row stands for it)."""
+    out = []
+    for label, source, nums, config, predictor in HUMANEVA_ROWS:
+        if label == "DLow" and "MOJO" in source:
+            continue
+        files = humaneva_runs(config)
+        out.append((label, dict(zip(HE_METRICS, nums)), _mean(files, predictor, 50) if files else None))
+    return out
+
+
 def humaneva_claims() -> list[str]:
     """The papers' ranking claims on their own data, computed from our HumanEva-I rows (pending where a run is missing)."""
     def ours(config, predictor):
@@ -604,6 +616,10 @@ def humaneva_section() -> list[str]:
         "",
         *humaneva_table(),
         "",
+        *figure("figures/humaneva_rows.svg", "APD against ADE and FDE: each paper's HumanEva-I row and ours",
+                "Each published HumanEva-I row (hollow) and this library's run of it (filled, the mean over its seeds), an "
+                "arrow from the paper's to ours: up is more diverse, left more accurate. Rows not run yet show the paper's "
+                "point alone. Generated from the files under *How measured* below."),
         "The papers' ranking claims on their own data:",
         "",
         *humaneva_claims(),
@@ -679,6 +695,8 @@ def figure_files() -> dict[Path, str | bytes]:
         "apd_ade.svg": figures.apd_ade(_k50(LONG_RUNS), "Bandai-Namco-2, long budget, K = 50 (seed 0; DLow d_scale 100: seeds 0, 1, mean)"),
         "learning_curves.svg": figures.learning_curves([(label, _last_stage(f)) for label, f in CURVES]),
     }
+    out["humaneva_rows.svg"] = figures.paper_and_ours(humaneva_points(), "HumanEva-I, K = 50: each paper's row and ours "
+                                                       "(mean over seeds)")
     d = json.loads((EXP / DIVSAMP_K_SWEEP).read_text())
     out["divsamp_k_sweep.svg"] = figures.against(
         "K", "K (futures per window)", d["rows"], [("error (m)", ["ADE", "FDE", "MMADE", "MMFDE"]), ("APD (m)", ["APD"])],

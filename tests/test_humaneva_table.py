@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import json
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -62,3 +63,17 @@ def test_every_stand_in_config_is_committed_with_fewer_steps():
             steps = generate._flat_steps(to_dict(load_config(ROOT / "experiments" / "configs" / f"{part}.py")))
             assert steps.keys() == release.keys() and all(steps[k] <= release[k] for k in steps), part
             assert any(steps[k] < release[k] for k in steps), f"{part} runs the release's whole budget"
+
+
+def test_the_figure_has_every_published_row_once_and_ours_only_where_run(tmp_path, monkeypatch):
+    monkeypatch.setattr(generate, "EXP", tmp_path)
+    (tmp_path / generate.HUMANEVA).mkdir()
+    rec = [{"method": "dlow", "K": 50, "seed": 0, "config": {"name": "dlow_humaneva"},
+            "metrics": {"APD": 4.9, "ADE": 0.245, "FDE": 0.27, "MMADE": 0.36, "MMFDE": 0.35}}]
+    (tmp_path / generate.HUMANEVA / "dlow_humaneva_s0_metrics.json").write_text(json.dumps(rec))
+    points = generate.humaneva_points()
+    # DLow's row appears once (its own paper's), though two papers print it.
+    assert [p[0] for p in points] == list(dict.fromkeys(r[0] for r in generate.HUMANEVA_ROWS))
+    dlow = points[0]
+    assert dlow[1]["ADE"] == 0.251 and dlow[2]["ADE"] == 0.245 and dlow[2]["APD"] == 4.9
+    assert all(ours is None for _, _, ours in points[1:])
