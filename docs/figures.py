@@ -24,6 +24,17 @@ def _svg(fig) -> str:
     return buf.getvalue()
 
 
+def _apd_panels(fig, axes, errors: tuple[str, str], title: str, ncol: int, fontsize: float) -> str:
+    """Labels two panels of APD against an error each (`errors`), titles the figure, puts the legend below it."""
+    for ax, err in zip(axes, errors):
+        ax.set_xlabel(f"{err} (m), lower is better")
+    axes[0].set_ylabel("APD (m), higher is more diverse")
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    fig.legend(loc="upper center", ncol=ncol, fontsize=fontsize, bbox_to_anchor=(0.5, 0.0))
+    return _svg(fig)
+
+
 def apd_ade(points: list[tuple[str, float, float, float, float]], title: str) -> str:
     """A scatter of accuracy against diversity: `points` are `(label, ADE, APD, MMADE, FDE)`; a label's first word
     (the method) picks the colour, the rest of it the marker."""
@@ -38,13 +49,7 @@ def apd_ade(points: list[tuple[str, float, float, float, float]], title: str) ->
             style = dict(s=32, color=f"C{methods.index(m) % 10}", marker=markers[seen[m] % len(markers)], zorder=3)
             for ax, i in zip(axes, (1, 3)):
                 ax.scatter(p[i], p[2], label=p[0] if ax is axes[0] else None, **style)
-        axes[0].set_xlabel("ADE (m), lower is better")
-        axes[1].set_xlabel("MMADE (m), lower is better")
-        axes[0].set_ylabel("APD (m), higher is more diverse")
-        fig.suptitle(title, fontsize=9)
-        fig.tight_layout()
-        fig.legend(loc="upper center", ncol=3, fontsize=7.5, bbox_to_anchor=(0.5, 0.0))
-        return _svg(fig)
+        return _apd_panels(fig, axes, ("ADE", "MMADE"), title, ncol=3, fontsize=7.5)
 
 
 def paper_and_ours(rows: list[tuple[str, dict[str, float], dict[str, float] | None]], title: str) -> str:
@@ -62,13 +67,7 @@ def paper_and_ours(rows: list[tuple[str, dict[str, float], dict[str, float] | No
                                label=f"{label}, jaxmotion" if ax is axes[0] else None)
                     ax.annotate("", xy=(ours[err], ours["APD"]), xytext=(paper[err], paper["APD"]),
                                 arrowprops=dict(arrowstyle="->", color=color, lw=0.9))
-        axes[0].set_xlabel("ADE (m), lower is better")
-        axes[1].set_xlabel("FDE (m), lower is better")
-        axes[0].set_ylabel("APD (m), higher is more diverse")
-        fig.suptitle(title, fontsize=9)
-        fig.tight_layout()
-        fig.legend(loc="upper center", ncol=4, fontsize=7, bbox_to_anchor=(0.5, 0.0))
-        return _svg(fig)
+        return _apd_panels(fig, axes, ("ADE", "FDE"), title, ncol=4, fontsize=7)
 
 
 def learning_curves(curves: list[tuple[str, list[dict]]]) -> str:
