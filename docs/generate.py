@@ -561,12 +561,13 @@ def humaneva_table() -> list[str]:
 
 
 def humaneva_points() -> list[tuple[str, dict[str, float], dict[str, float] | None]]:
-    """Returns `(label, the paper's metrics, ours or None)` per published HumanEva-I row (MOJO's run of DLow left out:
-    DLow's own row stands for it)."""
-    out = []
-    for label, source, nums, config, predictor in HUMANEVA_ROWS:
-        if label == "DLow" and "MOJO" in source:
+    """Returns `(label, the paper's metrics, ours or None)` per method of the published HumanEva-I rows: a method two
+    papers print (DLow) once, with its first row (its own paper's)."""
+    out, seen = [], set()
+    for label, _source, nums, config, predictor in HUMANEVA_ROWS:
+        if label in seen:
             continue
+        seen.add(label)
         files = humaneva_runs(config)
         out.append((label, dict(zip(HE_METRICS, nums)), _mean(files, predictor, 50) if files else None))
     return out

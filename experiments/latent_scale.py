@@ -75,17 +75,18 @@ def sweep(cfg, prep, params, scales: list[float], sampler: str = "prior") -> lis
     if cfg.method not in CVAES:
         raise SystemExit(f"--config: method {cfg.method!r} has no CVAE prior sampler here (one of {sorted(CVAES)})")
     module, settings = CVAES[cfg.method]
-    m = settings(method.settings(cfg))
-    model = module.cvae_model(m, prep.dataset.dim, prep.dataset.t_pred, execution_of(cfg))
+    cvae_cfg = settings(method.settings(cfg))
+    model = module.cvae_model(cvae_cfg, prep.dataset.dim, prep.dataset.t_pred, execution_of(cfg))
     k = max(cfg.eval_k)
-    if sampler == "q" and (cfg.method != "mojo" or f"q_k{k}" not in params):
-        raise SystemExit(f"--sampler q: needs a MOJO run with a trained second stage q_k{k} (this run: method "
-                         f"{cfg.method!r}, stages {sorted(params)})")
+    if sampler == "q":
+        if cfg.method != "mojo" or f"q_k{k}" not in params:
+            raise SystemExit(f"--sampler q: needs a MOJO run with a trained second stage q_k{k} (this run: method "
+                             f"{cfg.method!r}, stages {sorted(params)})")
+        q = mojo.q_model(cvae_cfg, prep.dataset.t_pred, k, execution_of(cfg))
     c = dataclasses.replace(cfg, eval_k=(k,))
     out = []
     for s in scales:
         if sampler == "q":
-            q = mojo.q_model(m, prep.dataset.t_pred, k, execution_of(cfg))
             fn, name = scaled_q(model, params["cvae"], q, params[f"q_k{k}"], s), f"q_x{s:g}"
         else:
             fn, name = scaled_prior(model, params["cvae"], k, s), f"prior_x{s:g}"

@@ -220,17 +220,15 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "eval" and args.model is not None:
         return _eval_model(args)
     host_devices = getattr(args, "host_devices", None)
-    if host_devices is not None:  # before anything runs on a device: XLA reads the flag as jax's backend starts
-        from jaxmotion.train.host_devices import force_host_devices
+    from jaxmotion.train.host_devices import check_host_devices, force_host_devices  # imports no jax
 
+    if host_devices is not None:  # before anything runs on a device: XLA reads the flag as jax's backend starts
         force_host_devices(host_devices)
     from jaxmotion.train import distributed
 
     if args.command in ("run", "train", "eval"):  # before anything runs on a device
         distributed.initialize(args.coordinator_address, args.num_processes, args.process_id, auto=args.distributed)
     if host_devices is not None:
-        from jaxmotion.train.host_devices import check_host_devices
-
         check_host_devices(host_devices)
     from jaxmotion.config import load_config
 
