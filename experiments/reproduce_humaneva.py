@@ -10,8 +10,8 @@ seeds before the longest runs; `--runs` names others, e.g. a diagnostic). A run 
 from its last checkpoint (`--resume`). When a run ends, its `metrics.json`, learning curve
 (`<config>_s<seed>_curve.json`) and picture (`<config>_s<seed>_curves.png`) are copied into `--results`,
 the files the Results page is generated from (`docs/generate.py`). Stop it at any time (Ctrl-C) and run
-the same command again to go on (`--list` prints the runs still to do and each started run's newest checkpoint
-per stage): the whole table is about 45 hours on a 2-core CPU (the Benchmarks page,
+the same command again to go on (`--list` prints the runs still to do, each started run's newest checkpoint
+per stage and an unfinished stage's pace): the whole table is about 45 hours on a 2-core CPU (the Benchmarks page,
 "What reproduction costs").
 
 The runs use the library of the checkout this script is in: run it from a clone frozen at one commit, so
@@ -75,16 +75,43 @@ def command(config: str, seed: int, data: Path, workdir: Path, lock: Path | None
     return (["flock", str(lock)] if lock else []) + cmd
 
 
+def step_seconds(log: Path) -> float | None:
+    """Returns the seconds a step took in the newest training segment of a stage's `log.jsonl` (its step
+    records' `time_s` restarts at each `--resume`), or None with fewer than two records in that segment."""
+    if not log.is_file():
+        return None
+    segment: list[tuple[int, float]] = []
+    for line in log.read_text().splitlines():
+        try:
+            rec = json.loads(line)
+        except json.JSONDecodeError:  # a line a kill cut short
+            continue
+        if rec.get("curve") or "time_s" not in rec or "step" not in rec:
+            continue
+        if segment and rec["time_s"] < segment[-1][1]:
+            segment = []
+        segment.append((rec["step"], rec["time_s"]))
+    if len(segment) < 2 or segment[-1][0] <= segment[0][0]:
+        return None
+    return (segment[-1][1] - segment[0][1]) / (segment[-1][0] - segment[0][0])
+
+
 def progress(workdir: Path) -> str:
     """Returns how far a started run got: each stage's newest checkpoint against its steps, e.g. `cvae 7,500 / 7,500,
-    q_k50 8,000 / 15,500` (stages in training order: fewer upstream stages first), and whether it was evaluated."""
+    q_k50 8,000 / 15,500 (0.65 s a step, about 1.4 h to go)` (stages in training order: fewer upstream stages first;
+    an unfinished stage's pace from its newest training segment's log), and whether it was evaluated."""
     stages = []
     for manifest in workdir.glob("*/stage.json"):
         info = json.loads(manifest.read_text())
         ckpt = manifest.parent / "ckpt"
         steps = [int(p.name) for p in ckpt.iterdir() if p.name.isdigit()] if ckpt.is_dir() else []
         stages.append((len(info.get("upstream", {})), manifest.parent.name, max(steps, default=0), info["num_steps"]))
-    parts = [f"{name} {done:,} / {total:,}" for _, name, done, total in sorted(stages)]
+    parts = []
+    for _, name, done, total in sorted(stages):
+        parts.append(f"{name} {done:,} / {total:,}")
+        pace = step_seconds(workdir / name / "log.jsonl") if done < total else None
+        if pace is not None:
+            parts[-1] += f" ({pace:.2f} s a step, about {pace * (total - done) / 3600:.1f} h to go)"
     if (workdir / "metrics.json").is_file():
         parts.append("evaluated")
     return ", ".join(parts) or "no checkpoint yet"
@@ -117,7 +144,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="these runs instead of the table's (default: RUNS)")
     ap.add_argument("--lock", type=Path, default=None, help="hold this file's lock (flock) around each run")
     ap.add_argument("--list", action="store_true",
-                    help="print the runs still to do (a started run: each stage's newest checkpoint) and stop")
+                    help="print the runs still to do (a started run: each stage's newest checkpoint, an unfinished "
+                         "stage's seconds a step and hours to go) and stop")
     ap.add_argument("--host-devices", type=int, default=None, metavar="N",
                     help="train runs on N CPU host devices (jaxmotion run --host-devices; the benchmarks page's "
                          "cost table says which stages it speeds up)")
