@@ -464,12 +464,14 @@ HUMANEVA_WHY: dict[str, str] = {
                "(`humaneva/dlow_loss/`, two seeds) APD was 1.76, MMADE and MMFDE 10% and 20% lower, FDE 9% lower, and "
                "the robust KLD inert (`humaneva/kld/`)",
     "VAE+DCT+5": "more accurate and less diverse than the paper's (one seed): APD 2.81 against 4.18, MMADE and MMFDE 4% and "
-                 "3% higher. At the paper's diversity it stays more accurate: its Q latents spread about their mean reach APD "
-                 "4.01 with ADE 0.219 and FDE 0.221, 6% and 9% below the paper's (`humaneva/latent_scale/`), so the paper's "
-                 "row is not a point on this model's diversity-accuracy curve. DLow's release's squared reconstruction term in "
-                 "the second stage instead of MOJO's release's absolute one (`humaneva/recon/`, the same CVAE, 2,000 of 15,500 "
-                 "steps) raised APD 17% (2.94 against 2.52 at step 2,000) and ADE and FDE 1-2%: not the gap. The same run's "
-                 "VAE+DCT figures are the VAE+DCT row's seed 0 to the digit (the same CVAE)",
+                 "3% higher. The paper's row lies between the two readings of the CVAE's objective on all five figures: "
+                 "MOJO's (this row) and DLow's in both stages (`humaneva/objective/`, from the DLow-objective VAE+DCT, "
+                 "step 2,000 of 15,500: APD 5.84, ADE 0.255, FDE 0.265, MMADE 0.366, MMFDE 0.330), as the VAE+DCT row's "
+                 "paper figures lie between its two readings on four of five; MOJO's HumanEva-I weights are not published "
+                 "(its release holds AMASS configs only). Not the gap: the Q latents spread to the paper's APD "
+                 "(`humaneva/latent_scale/`: APD 4.01, ADE 0.219, FDE 0.221, still more accurate), DLow's squared "
+                 "second-stage term alone (`humaneva/recon/`: APD +17%, ADE and FDE +1-2%). The same run's VAE+DCT figures "
+                 "are the VAE+DCT row's seed 0 to the digit (the same CVAE)",
 }
 
 
