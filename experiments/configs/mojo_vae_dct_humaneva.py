@@ -21,7 +21,8 @@ to the fourth digit (`mojo_vae_dct_humaneva_plain_kld.py`). Only MOJO's element-
 number, gives Psi a role. The two readings measured on the test windows at the full budget (seed 0): DLow's
 objective APD 1.82, ADE 0.252, FDE 0.268, MMADE 0.368, MMFDE 0.353; MOJO's APD 0.71, ADE 0.247, FDE 0.289,
 MMADE 0.436, MMFDE 0.471 (the paper: 0.966 / 0.249 / 0.296 / 0.412 / 0.445). The choice rests on the paper's
-text above, not on which numbers are closer.
+text above, not on which numbers are closer. The paper's figures lie between the two readings' (VAE+DCT: four of
+five; VAE+DCT+5, `mojo_vae_dct5_humaneva_dlow_loss.py`: all five): its HumanEva-I weights are not published.
 VAE+DCT trains the CVAE alone (`q_num_steps=0`) and samples N(0, I) in every band ("mojo_prior").
 The paper's rows (K = 50): VAE+DCT APD 0.966, ADE 0.249, FDE 0.296, MMADE 0.412, MMFDE 0.445;
 VAE+DCT+5 4.181 / 0.234 / 0.244 / 0.369 / 0.347; VAE+DCT+20 6.266 / 0.239 / 0.253 / 0.371 / 0.345.
