@@ -77,7 +77,8 @@ def command(config: str, seed: int, data: Path, workdir: Path, lock: Path | None
 
 def step_seconds(log: Path) -> float | None:
     """Returns the seconds a step took in the newest training segment of a stage's `log.jsonl` (its step
-    records' `time_s` restarts at each `--resume`), or None with fewer than two records in that segment."""
+    records' `time_s` restarts at each `--resume`): the median between consecutive records, or None with fewer
+    than two records in that segment."""
     if not log.is_file():
         return None
     segment: list[tuple[int, float]] = []
@@ -91,9 +92,10 @@ def step_seconds(log: Path) -> float | None:
         if segment and rec["time_s"] < segment[-1][1]:
             segment = []
         segment.append((rec["step"], rec["time_s"]))
-    if len(segment) < 2 or segment[-1][0] <= segment[0][0]:
-        return None
-    return (segment[-1][1] - segment[0][1]) / (segment[-1][0] - segment[0][0])
+    # The median over the segment's records, so that a pause (the run stopped for other work) or a curve
+    # evaluation between two records does not count as the pace.
+    paces = sorted((t1 - t0) / (s1 - s0) for (s0, t0), (s1, t1) in zip(segment, segment[1:]) if s1 > s0)
+    return paces[len(paces) // 2] if paces else None
 
 
 def progress(workdir: Path) -> str:

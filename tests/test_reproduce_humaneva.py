@@ -113,9 +113,11 @@ def test_list_shows_how_far_a_started_run_got(tmp_path, capsys):
         for step in ckpts:
             (started / stage / "ckpt" / str(step)).mkdir()
     (started / "dlow_k50" / "ckpt" / "1500.orbax-checkpoint-tmp").mkdir()  # a write a kill interrupted: not a checkpoint
-    # Two training segments (time_s restarts at a resume); the pace is the newest one's: 0.5 s a step.
+    # Two training segments (time_s restarts at a resume); the pace is the newest one's median, 0.5 s a step
+    # (one stretch of it paused for 600 s).
     log = [{"step": 50, "time_s": 10.0}, {"step": 100, "time_s": 90.0}, {"step": 500, "curve": True, "APD": 1.0},
-           {"step": 1050, "time_s": 5.0}, {"step": 1100, "time_s": 30.0}, {"step": 1200, "time_s": 80.0}]
+           {"step": 1050, "time_s": 5.0}, {"step": 1100, "time_s": 30.0}, {"step": 1200, "time_s": 80.0},
+           {"step": 1250, "time_s": 705.0}, {"step": 1300, "time_s": 730.0}]
     (started / "dlow_k50" / "log.jsonl").write_text("".join(json.dumps(r) + "\n" for r in log) + '{"step": 12')
     (runs / "dlow_humaneva_s0").mkdir()
     assert rh.main(["--results", str(tmp_path), "--runs-dir", str(runs), "--runs", "dlow_humaneva:0", "dlow_humaneva:1",
