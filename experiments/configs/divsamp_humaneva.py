@@ -3,10 +3,12 @@
 # The paper's row (DivSamp's Table 1, K = 50): APD 6.109, ADE 0.220, FDE 0.234, MMADE 0.342, MMFDE 0.316.
 # Release budget: CVAE 2000 epochs x 62 batches of 32 (124,000 steps, 3.97M windows); sampler 1500 epochs
 # x 125 batches of 16 (187,500 steps, 3.0M windows, K = 50 futures each).
-# Measured here (2-core Intel Xeon, family 6 model 167, AVX-512/AMX, 2.6 GHz; the long run paused):
-# CVAE 0.18 s/step (6.2 h for 124,000), sampler 0.88 s/step (45.6 h for 187,500): about 52 h for the
-# full budget on this CPU (steps 2-8 of a tiny-budget copy of this config; all 188 test windows
-# evaluated in 30 s at K = 50).
+# Measured here (2-core Intel Xeon, family 6 model 207; the Benchmarks page's cost table, `benchmarks/repro_cost.py`):
+# CVAE 0.066 s/step (2.3 h for 124,000), sampler 0.285 s/step (14.9 h for 187,500): about 17 h for the full
+# budget on one device (on another 2-core Xeon, family 6 model 167, before the speed work: 0.18 and 0.88 s/step,
+# about 52 h). All 188 test windows evaluated in 30 s at K = 50.
+# Checkpoints every 1,000 steps (about 5 minutes of the sampler), so a run stopped at the end of a sitting
+# loses little when it resumes; the checkpoints change no result (a resumed run equals an uninterrupted one).
 """DivSamp on HumanEva-I (15 -> 60 frames at 60 fps, 14 joints): the authors' final release, setting by setting.
 
 Read against github.com/Droliven/diverse_sampling at its latest commit ("all code ready"):
@@ -54,7 +56,7 @@ def get_config() -> Config:
         dataset="data_3d_humaneva15.npz",
         train_sampler="subjects",
         eval_k=(50,),
-        ckpt_every=5000,
+        ckpt_every=1000,
         log_every=500,
         curve_every=5000,
         method_config=DivSampConfig(
