@@ -28,6 +28,15 @@ METRICS = ("APD", "ADE", "FDE", "MMADE")
 STYLES = ("-", "--", ":", "-.")
 
 
+def log_records(log: Path):
+    """Yields the records of a stage's `log.jsonl`, skipping a line a kill cut short."""
+    for line in log.read_text().splitlines():
+        try:
+            yield json.loads(line)
+        except ValueError:
+            continue
+
+
 def load_curves(run: Path) -> dict[str, dict[str, list[tuple[int, dict]]]]:
     """Returns `{stage folder: {predictor: [(step, metrics), ...]}}` from a run's stage logs (or from a
     `*_curve.json` file that `--json-dir` wrote), in step order."""
@@ -39,11 +48,7 @@ def load_curves(run: Path) -> dict[str, dict[str, list[tuple[int, dict]]]]:
         return {stage: {k: sorted(v, key=lambda t: t[0]) for k, v in preds.items()} for stage, preds in out.items()}
     for log in sorted(run.glob("*/log.jsonl")):
         by_pred: dict = {}
-        for line in log.read_text().splitlines():
-            try:
-                rec = json.loads(line)
-            except ValueError:
-                continue
+        for rec in log_records(log):
             if not rec.get("curve"):
                 continue
             for name, m in rec["predictors"].items():

@@ -82,11 +82,7 @@ def step_seconds(log: Path) -> float | None:
     if not log.is_file():
         return None
     segment: list[tuple[int, float]] = []
-    for line in log.read_text().splitlines():
-        try:
-            rec = json.loads(line)
-        except json.JSONDecodeError:  # a line a kill cut short
-            continue
+    for rec in plot_curves.log_records(log):
         if rec.get("curve") or "time_s" not in rec or "step" not in rec:
             continue
         if segment and rec["time_s"] < segment[-1][1]:
