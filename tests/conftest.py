@@ -40,6 +40,17 @@ def pytest_configure(config):
     jax.config.update("jax_persistent_cache_min_compile_time_secs", float(os.environ["JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"]))
 
 
+def pytest_xdist_auto_num_workers(config):
+    """`-n auto`: one and a half workers a logical CPU (3 on 2 cores; `--maxprocesses` still caps it).
+
+    A worker spends much of its time waiting: on a `jaxmotion` subprocess it started, on XLA's
+    single-threaded compiler while the other core idles, on file writes. With one worker a CPU the
+    2-core machine kept 1.64 cores busy over the suite (process CPU time over wall time); a third
+    worker fills the gaps. `-n N` chooses any other count.
+    """
+    return max(1, (3 * (os.cpu_count() or 1)) // 2)
+
+
 def pytest_unconfigure(config):
     if not hasattr(config, "workerinput") and _CACHE_ENV in os.environ:  # the process that made it
         shutil.rmtree(os.environ.pop(_CACHE_ENV), ignore_errors=True)
