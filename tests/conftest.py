@@ -40,6 +40,7 @@ def pytest_configure(config):
     jax.config.update("jax_persistent_cache_min_compile_time_secs", float(os.environ["JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"]))
 
 
+@pytest.hookimpl(optionalhook=True)  # pytest without pytest-xdist (or `-p no:xdist`) has no such hook
 def pytest_xdist_auto_num_workers(config):
     """`-n auto`: one and a half workers a logical CPU (3 on 2 cores; `--maxprocesses` still caps it).
 
