@@ -16,7 +16,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib.animation import FFMpegWriter, FuncAnimation, PillowWriter  # noqa: E402
+from matplotlib.animation import FFMpegWriter, PillowWriter  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 
 from jaxmotion.formats.atomic import atomic_path  # noqa: E402
@@ -108,6 +108,9 @@ def animate_futures(
     if title:
         fig.suptitle(title, fontsize=7)
     fig.tight_layout(rect=(0, 0.04, 1, 0.93 if title else 1))
+    # The layout is fixed from here on: without an engine the writer's savefig lays nothing out again (tight_layout
+    # leaves a placeholder engine, for which every frame was drawn twice: once to lay out, once to grab).
+    fig.set_layout_engine(None)
 
     def draw(t: int):
         observed = t < t_his
@@ -121,7 +124,6 @@ def animate_futures(
         label.set_text(f"observed {t + 1}/{t_his}" if observed else f"future +{t - t_his + 1}/{t_pred}")
         return [*over, truth0, *[c for c, _, _ in singles], label]
 
-    anim = FuncAnimation(fig, draw, frames=[int(t) for t in times], blit=False)
     play_fps = max(1.0, fps / stride)
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.suffix == ".mp4":
@@ -131,7 +133,11 @@ def animate_futures(
         writer = FFMpegWriter(fps=play_fps)
     else:
         writer = PillowWriter(fps=play_fps)
-    with atomic_path(path) as tmp:
-        anim.save(tmp, writer=writer, dpi=dpi)
+    # The frames straight through the writer: each frame drawn once, as the writer grabs it. (FuncAnimation's
+    # save draws every frame three times: after the update, once more for an interactive canvas, then to grab it.)
+    with atomic_path(path) as tmp, writer.saving(fig, tmp, dpi):
+        for t in times:
+            draw(int(t))
+            writer.grab_frame()
     plt.close(fig)
     return path
