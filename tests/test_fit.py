@@ -112,8 +112,8 @@ def test_calibrate_recovers_a_subjects_bones_and_marker_placement():
     shape = 0.08 * jax.random.normal(k[1], BODY.zero_params().shape.shape)
     frames = [random_params(300 + i, pose_std=0.4)._replace(shape=shape) for i in range(16)]
     params = jax.tree.map(lambda *a: jnp.stack(a), *frames)
-    targets = jax.vmap(subject.markers)(params)
-    fit_generic = jax.vmap(lambda t: fit_markers(BODY, t, BODY.zero_params(), max_steps=30))(targets)
+    targets = jax.jit(jax.vmap(subject.markers))(params)
+    fit_generic = jax.jit(jax.vmap(lambda t: fit_markers(BODY, t, BODY.zero_params(), max_steps=30)))(targets)
     cal = calibrate(BODY, targets, rounds=4)
     before, after = float(fit_generic.residual.mean()), float(cal.fits.residual.mean())
     assert before > 1e-2 and after < 0.35 * before, (before, after)

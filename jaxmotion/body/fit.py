@@ -17,6 +17,7 @@ spirit of MoSh: alternate per-frame pose fits with one least-squares solve for t
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Any, NamedTuple
 
 import jax
@@ -161,6 +162,9 @@ class Calibration(NamedTuple):
     fits: FitResult
 
 
+# Compiled as one program: called eagerly, its vmapped per-frame fits and the solver's setup would dispatch (and
+# compile) op by op, hundreds of small programs.
+@partial(jax.jit, static_argnames=("rounds", "max_steps"))
 def calibrate(
     body,
     targets: Float[Array, "f m 3"],
