@@ -122,7 +122,6 @@ def animate_futures(
             c.set_segments(_segments(s[t], parents, across, up))
             c.set_color("0.5" if observed else color)
         label.set_text(f"observed {t + 1}/{t_his}" if observed else f"future +{t - t_his + 1}/{t_pred}")
-        return [*over, truth0, *[c for c, _, _ in singles], label]
 
     play_fps = max(1.0, fps / stride)
     path.parent.mkdir(parents=True, exist_ok=True)
