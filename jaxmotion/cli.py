@@ -505,15 +505,21 @@ class _OrbaxThreadErrorsDropped:
     traceback (logger `absl`), and asyncio logs each of their gathered futures again when it is collected
     (logger `asyncio`, "exception was never retrieved"): a hundred lines or more around the one error.
     The same failure reaches `train.loop._save`, which raises it as a `CheckpointError` naming the
-    folder, so those records say nothing new; every other record passes.
+    folder, so those records say nothing new. A failed restore leaves such futures too, some holding
+    tensorstore's own error with no Python frame at all (its text names a `tensorstore_spec`); the
+    restore's error is already the one line, so those are dropped as well. Every other record passes.
     """
 
     @staticmethod
     def filter(record) -> bool:
         import traceback
 
-        tb = record.exc_info[2] if record.exc_info else None
-        return tb is None or not any("/orbax/" in f.filename.replace("\\", "/") for f in traceback.extract_tb(tb))
+        if not record.exc_info or record.exc_info[1] is None:
+            return True
+        tb = record.exc_info[2]
+        if tb is None:
+            return "tensorstore_spec" not in str(record.exc_info[1])
+        return not any("/orbax/" in f.filename.replace("\\", "/") for f in traceback.extract_tb(tb))
 
 
 def _report(e: BaseException, prog: str = "jaxmotion") -> int:

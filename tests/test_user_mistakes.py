@@ -223,6 +223,11 @@ def test_orbax_thread_tracebacks_are_dropped_and_nothing_else(tmp_path):
     mine = exc_info_from(str(tmp_path / "my_module.py"))
     assert not _OrbaxThreadErrorsDropped.filter(record(orbax))
     assert _OrbaxThreadErrorsDropped.filter(record(mine)) and _OrbaxThreadErrorsDropped.filter(record(None))
+    # A failed restore's leftover futures: tensorstore's error, raised in its threads, has no Python frame.
+    store = ValueError("OUT_OF_RANGE: Error reading \"w/.zarray\" [tensorstore_spec='{\"driver\":\"zarr\"}']")
+    other = ValueError("a frameless error of something else")
+    assert not _OrbaxThreadErrorsDropped.filter(record((ValueError, store, None)))
+    assert _OrbaxThreadErrorsDropped.filter(record((ValueError, other, None)))
 
 
 def test_a_training_step_out_of_memory_is_a_config_error_not_a_checkpoint_error(tmp_path):
