@@ -11,7 +11,8 @@ from its last checkpoint (`--resume`). When a run ends, its `metrics.json`, lear
 (`<config>_s<seed>_curve.json`) and picture (`<config>_s<seed>_curves.png`) are copied into `--results`,
 the files the Results page is generated from (`docs/generate.py`). Stop it at any time (Ctrl-C) and run
 the same command again to go on (`--list` prints the runs still to do, each started run's newest checkpoint
-per stage and an unfinished stage's pace): the whole table is about 45 hours on a 2-core CPU (the Benchmarks page,
+per stage and an unfinished stage's pace; `--snapshot DIR` keeps the learning curves of unfinished runs, whose
+folders a replaced machine would lose): the whole table is about 45 hours on a 2-core CPU (the Benchmarks page,
 "What reproduction costs").
 
 The runs use the library of the checkout this script is in: run it from a clone frozen at one commit, so
@@ -115,20 +116,39 @@ def progress(workdir: Path) -> str:
     return ", ".join(parts) or "no checkpoint yet"
 
 
+def write_curve(run: Path, out: Path, stem: str, about: str = "") -> list[Path]:
+    """Writes a run's learning curve so far (`<stem>_curve.json`) and its picture (`<stem>_curves.png`) into
+    `out`; returns the files written (none when its logs hold no curve point yet)."""
+    curves = plot_curves.load_curves(run)
+    if not curves:
+        return []
+    out.mkdir(parents=True, exist_ok=True)
+    _, rec = plot_curves.curve_record(run, curves, about)
+    (out / f"{stem}_curve.json").write_text(json.dumps(rec, indent=1) + "\n")
+    plot_curves.plot([(stem, curves)], out / f"{stem}_curves.png")
+    return [out / f"{stem}_curve.json", out / f"{stem}_curves.png"]
+
+
 def collect(run: Path, results: Path) -> list[Path]:
     """Copies a finished run's metrics, learning curve and picture into `results`; returns the files written."""
     records = json.loads((run / "metrics.json").read_text())
     stem = f"{records[0]['config']['name']}_s{records[0]['seed']}"
     results.mkdir(parents=True, exist_ok=True)
-    written = [results / f"{stem}_metrics.json"]
-    shutil.copyfile(run / "metrics.json", written[0])
-    curves = plot_curves.load_curves(run)
-    if curves:
-        _, rec = plot_curves.curve_record(run, curves)
-        written.append(results / f"{stem}_curve.json")
-        written[-1].write_text(json.dumps(rec, indent=1) + "\n")
-        written.append(results / f"{stem}_curves.png")
-        plot_curves.plot([(stem, curves)], written[-1])
+    shutil.copyfile(run / "metrics.json", results / f"{stem}_metrics.json")
+    return [results / f"{stem}_metrics.json", *write_curve(run, results, stem)]
+
+
+def snapshot(runs: list[tuple[str, int]], runs_dir: Path, out: Path) -> list[Path]:
+    """Writes each started, unevaluated run's learning curve so far into `out` as `<config>_s<seed>_partial_curve.json`
+    and `..._partial_curves.png`, its progress (`progress`) in the record's `run` line; returns the files written.
+
+    A run's folder lives on the machine that trains it: this keeps what an unfinished run has measured when that
+    machine may not be there for the next sitting."""
+    written = []
+    for config, seed in runs:
+        run = runs_dir / f"{config}_s{seed}"
+        if run.is_dir() and not (run / "metrics.json").is_file():
+            written += write_curve(run, out, f"{config}_s{seed}_partial", f"unfinished: {progress(run)}")
     return written
 
 
@@ -144,6 +164,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--list", action="store_true",
                     help="print the runs still to do (a started run: each stage's newest checkpoint, an unfinished "
                          "stage's seconds a step and hours to go) and stop")
+    ap.add_argument("--snapshot", type=Path, default=None, metavar="DIR",
+                    help="write each started, unfinished run's learning curve so far into DIR "
+                         "(<config>_s<seed>_partial_curve.json and _curves.png, its progress in the record) and stop")
     ap.add_argument("--host-devices", type=int, default=None, metavar="N",
                     help="train runs on N CPU host devices (jaxmotion run --host-devices; the benchmarks page's "
                          "cost table says which stages it speeds up)")
@@ -151,6 +174,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="only these configs' runs on --host-devices (default: every run)")
     args = ap.parse_args(argv)
     todo = pending(list(args.runs or RUNS), args.results)
+    if args.snapshot is not None:
+        written = snapshot(todo, args.runs_dir, args.snapshot)
+        print("\n".join(f"  {p}" for p in written) or f"no started, unfinished run with a curve point in {args.runs_dir}")
+        return 0
     if args.list or not todo:
         print("\n".join(f"{c}:{s}" + (f" (started: {progress(d)})" if (d := args.runs_dir / f"{c}_s{s}").is_dir() else "")
                         for c, s in todo)

@@ -150,3 +150,21 @@ def test_host_devices_go_to_the_named_configs_runs_only(tmp_path, monkeypatch, c
     assert "--host-devices-configs: gsps_humaneva not among the runs to do" in capsys.readouterr().err
     assert rh.main(argv + ["--host-devices-configs", "mojo_vae_dct5_humaneva"]) == 0
     assert flags == {"dlow_humaneva": None, "mojo_vae_dct5_humaneva": "2"}
+
+
+def test_snapshot_keeps_the_curves_of_unfinished_runs_only(tmp_path, capsys):
+    runs, out = tmp_path / "runs", tmp_path / "partial"
+    _fake_run(runs / "dlow_humaneva_s0", "dlow_humaneva", 0)  # finished: collected by the run itself, not here
+    _fake_run(runs / "dlow_humaneva_s1", "dlow_humaneva", 1)
+    (runs / "dlow_humaneva_s1" / "metrics.json").unlink()  # unfinished, with three curve points
+    (runs / "mojo_vae_dct_humaneva_s0" / "cvae").mkdir(parents=True)  # started, no curve point yet
+    argv = ["--results", str(tmp_path / "results"), "--runs-dir", str(runs), "--snapshot", str(out),
+            "--runs", "dlow_humaneva:0", "dlow_humaneva:1", "mojo_vae_dct_humaneva:0", "gsps_humaneva:0"]
+    assert rh.main(argv) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["dlow_humaneva_s1_partial_curve.json", "dlow_humaneva_s1_partial_curves.png"]
+    rec = json.loads((out / "dlow_humaneva_s1_partial_curve.json").read_text())
+    assert [p["step"] for p in rec["curve"]] == [0, 50, 100] and "unfinished: no checkpoint yet" in rec["run"]
+    assert "dlow_humaneva_s1_partial_curve.json" in capsys.readouterr().out
+    assert not (tmp_path / "results").exists()  # nothing trained, nothing collected
+    assert rh.main([*argv[:5], str(tmp_path / "empty"), "--runs", "gsps_humaneva:0"]) == 0
+    assert "no started, unfinished run" in capsys.readouterr().out
