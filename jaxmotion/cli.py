@@ -528,6 +528,21 @@ def _report(e: BaseException, prog: str = "jaxmotion") -> int:
     return 2
 
 
+def _exit_after_report(code: int) -> int:
+    """Ends the console script at once after a user's error (`os._exit`, the streams flushed first).
+
+    After a failed checkpoint restore, orbax's and tensorstore's leftover futures, coroutines and reader
+    threads are collected during the interpreter's shutdown, each printing a line or a traceback after the
+    error's one line (asyncio's "exception was never retrieved", "coroutine ... was never awaited", "Event
+    loop is closed"). Nothing is being written on this path: the error ended the command, and the files it
+    had open were closed as the error passed through them."""
+    import os
+
+    for stream in (sys.stdout, sys.stderr):
+        stream.flush()
+    os._exit(code)
+
+
 def entry() -> int:
     """The console script: `main`, with every error a user can cause printed as one line (exit code 2).
 
@@ -536,23 +551,28 @@ def entry() -> int:
     `SystemExit` with a message is one too). `main` itself raises them (for tests and for code that
     calls it). Tensorstore's late "Event loop is closed" tracebacks after a failed checkpoint restore
     are dropped (`_LateLoopTracebacksDropped`), and so are orbax's writer threads' logged tracebacks after a
-    failed checkpoint write (`_OrbaxThreadErrorsDropped`), so the message is all a user sees.
+    failed checkpoint write or restore (`_OrbaxThreadErrorsDropped`) and the warnings about its coroutines left
+    unawaited, so the message is all a user sees.
     """
     from jaxmotion.train.hugepages import exec_with_hugepages
 
     exec_with_hugepages()  # once, before anything runs: large XLA buffers in 2 MiB pages (jaxmotion/train/hugepages.py)
     sys.stderr = _LateLoopTracebacksDropped(sys.stderr)
     import logging
+    import warnings
 
     for name in ("absl", "asyncio"):
         logging.getLogger(name).addFilter(_OrbaxThreadErrorsDropped)
+    # A failed restore can also leave orbax's coroutines unawaited, each reported at exit with a second line
+    # about tracemalloc; jaxmotion runs no coroutine of its own.
+    warnings.filterwarnings("ignore", message=r"coroutine .* was never awaited", category=RuntimeWarning)
     try:
         return main()
     except USER_ERRORS as e:
-        return _report(e)
+        return _exit_after_report(_report(e))
     except SystemExit as e:
         if isinstance(e.code, str):
-            return _report(e.code)
+            return _exit_after_report(_report(e.code))
         raise
     except KeyboardInterrupt:
         print("jaxmotion: interrupted", file=sys.stderr)

@@ -262,3 +262,20 @@ def test_the_python_api_refuses_a_config_past_memory_before_writing_anything(tmp
     with pytest.raises(ConfigError, match=r"config: evaluation: eval_batch 1000000000 x K 50 futures .* GiB at once"):
         experiment.train(cfg, experiment.prepare(ds, 8), tmp_path / "run")
     assert not (tmp_path / "run").exists()
+
+
+def test_a_coroutine_left_unawaited_after_a_user_error_prints_nothing_more():
+    """A failed restore can leave orbax's coroutines unawaited; the console script's error stays one line."""
+    import subprocess
+
+    code = ("import sys; import jaxmotion.cli as cli\n"
+            "from jaxmotion.train.loop import CheckpointError\n"
+            "async def read(): pass\n"
+            "def main(argv=None):\n"
+            "    global left\n"
+            "    left = read()\n"
+            "    raise CheckpointError('ckpt: checkpoint step 3 does not restore')\n"
+            "cli.main = main\n"
+            "sys.exit(cli.entry())\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and r.stderr.splitlines() == ["jaxmotion: error: ckpt: checkpoint step 3 does not restore"], r.stderr
