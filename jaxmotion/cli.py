@@ -30,6 +30,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import NoReturn
 
 from jaxmotion.errors import CheckpointError, ConfigError, DataError, RunFolderError, UsageError
 
@@ -528,7 +529,7 @@ def _report(e: BaseException, prog: str = "jaxmotion") -> int:
     return 2
 
 
-def _exit_after_report(code: int) -> int:
+def _exit_after_report(code: int) -> NoReturn:
     """Ends the console script at once after a user's error (`os._exit`, the streams flushed first).
 
     After a failed checkpoint restore, orbax's and tensorstore's leftover futures, coroutines and reader
