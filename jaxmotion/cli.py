@@ -552,21 +552,17 @@ def entry() -> int:
     `SystemExit` with a message is one too). `main` itself raises them (for tests and for code that
     calls it). Tensorstore's late "Event loop is closed" tracebacks after a failed checkpoint restore
     are dropped (`_LateLoopTracebacksDropped`), and so are orbax's writer threads' logged tracebacks after a
-    failed checkpoint write or restore (`_OrbaxThreadErrorsDropped`) and the warnings about its coroutines left
-    unawaited, so the message is all a user sees.
+    failed checkpoint write or restore (`_OrbaxThreadErrorsDropped`), and after a user's error the script
+    ends at once (`_exit_after_report`), so the message is all a user sees.
     """
     from jaxmotion.train.hugepages import exec_with_hugepages
 
     exec_with_hugepages()  # once, before anything runs: large XLA buffers in 2 MiB pages (jaxmotion/train/hugepages.py)
     sys.stderr = _LateLoopTracebacksDropped(sys.stderr)
     import logging
-    import warnings
 
     for name in ("absl", "asyncio"):
         logging.getLogger(name).addFilter(_OrbaxThreadErrorsDropped)
-    # A failed restore can also leave orbax's coroutines unawaited, each reported at exit with a second line
-    # about tracemalloc; jaxmotion runs no coroutine of its own.
-    warnings.filterwarnings("ignore", message=r"coroutine .* was never awaited", category=RuntimeWarning)
     try:
         return main()
     except USER_ERRORS as e:
